@@ -1,0 +1,66 @@
+//! Criterion benchmarks of the numerical core on a gantry-size problem
+//! (n=6, l=2, r=1, Nb=4, N=5, F=300, discrete time).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use lpvid::{FreeSet, FrfData, Problem, Shape};
+use num_complex::Complex64 as C64;
+use std::hint::black_box;
+
+/// A deterministic pseudo-random generator (no extra dependency).
+struct Lcg(u64);
+
+impl Lcg {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
+    }
+}
+
+/// A gantry-size problem with a stable random model and its own FRF as data.
+pub fn gantry_problem() -> (Problem, Vec<f64>) {
+    let shape = Shape::new(6, 1, 2, 4).expect("shape");
+    let mut rng = Lcg(7);
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.uniform()).collect();
+    // A(0) = 0.5 I keeps every frozen model stable.
+    let a0 = shape.block(lpvid::Matrix::A, 0);
+    for k in 0..shape.n {
+        theta[a0.start + k * (shape.n + 1)] += 0.5;
+    }
+    let (n_points, n_lines) = (5, 300);
+    let ts = 1e-3;
+    let z: Vec<C64> = (0..n_lines)
+        .map(|k| {
+            let f = 50.0 + 250.0 * k as f64 / (n_lines - 1) as f64;
+            C64::from_polar(1.0, 2.0 * std::f64::consts::PI * f * ts)
+        })
+        .collect();
+    let basis: Vec<f64> = (0..n_points)
+        .flat_map(|q| {
+            let s = -1.0 + 0.5 * q as f64;
+            (1..=4).map(move |i| s.powi(i))
+        })
+        .collect();
+    let len = n_points * n_lines * 2;
+    let g: Vec<C64> = (0..len)
+        .map(|_| C64::new(rng.uniform(), rng.uniform()))
+        .collect();
+    let data = FrfData::new(n_points, 2, 1, z, g, &vec![0.1; len]).expect("data");
+    (Problem::new(shape, data, &basis).expect("problem"), theta)
+}
+
+fn bench_evaluation(c: &mut Criterion) {
+    let (problem, theta) = gantry_problem();
+    let free = FreeSet::all(theta.len());
+    c.bench_function("gantry: residual + V_NLS + gradient + J^T J", |b| {
+        b.iter(|| black_box(problem.gauss_newton(black_box(&theta), &free).expect("gn")))
+    });
+    c.bench_function("gantry: V_NLS only", |b| {
+        b.iter(|| black_box(problem.cost(black_box(&theta)).expect("cost")))
+    });
+}
+
+criterion_group!(benches, bench_evaluation);
+criterion_main!(benches);

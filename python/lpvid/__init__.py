@@ -1,0 +1,32 @@
+"""lpvid: LPV state-space models from frequency-response data.
+
+Identifies linear parameter-varying state-space models from FRF data
+measured at frozen operating points and simplifies their scheduling
+dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
+Pipeleers and Swevers, 2018).
+"""
+
+from lpvid._core import SingularModelError
+from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
+from lpvid.cost import residual, vnls
+from lpvid.data import FrfData
+from lpvid.groups import GroupNorms
+from lpvid.layout import fixed_mask, free_mask
+from lpvid.model import LpvModel
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Basis",
+    "CustomBasis",
+    "FrfData",
+    "GroupNorms",
+    "Legendre",
+    "LpvModel",
+    "Polynomial",
+    "SingularModelError",
+    "fixed_mask",
+    "free_mask",
+    "residual",
+    "vnls",
+]

@@ -1,0 +1,87 @@
+"""Input checks shared by the public constructors.
+
+Every check names the argument it looks at, so that a user reading the error
+knows which of their inputs is wrong and what was expected.
+"""
+
+from __future__ import annotations
+
+import numbers
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+def real_array(
+    value: Any, name: str, ndim: int | tuple[int, ...] | None = None
+) -> NDArray[np.float64]:
+    """Return ``value`` as a finite float64 array, or raise naming ``name``."""
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover - numpy raises many types
+        raise TypeError(f"{name}: cannot be read as an array ({exc})") from exc
+    if np.iscomplexobj(arr):
+        raise TypeError(f"{name}: must be real, got a complex array")
+    if arr.dtype == object or not (
+        np.issubdtype(arr.dtype, np.number) or np.issubdtype(arr.dtype, np.bool_)
+    ):
+        raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.float64)
+    _check_ndim(arr, name, ndim)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: contains NaN or Inf")
+    return arr
+
+
+def complex_array(
+    value: Any, name: str, ndim: int | tuple[int, ...] | None = None
+) -> NDArray[np.complex128]:
+    """Return ``value`` as a finite complex128 array, or raise naming ``name``."""
+    try:
+        arr = np.asarray(value)
+    except Exception as exc:  # pragma: no cover
+        raise TypeError(f"{name}: cannot be read as an array ({exc})") from exc
+    if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
+        raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
+    arr = arr.astype(np.complex128)
+    _check_ndim(arr, name, ndim)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: contains NaN or Inf")
+    return arr
+
+
+def _check_ndim(arr: np.ndarray, name: str, ndim: int | tuple[int, ...] | None) -> None:
+    if ndim is None:
+        return
+    allowed = (ndim,) if isinstance(ndim, int) else ndim
+    if arr.ndim not in allowed:
+        want = " or ".join(str(d) for d in allowed)
+        raise ValueError(f"{name}: expected a {want}-dimensional array, got shape {arr.shape}")
+
+
+def positive_int(value: Any, name: str, minimum: int = 1) -> int:
+    """Return ``value`` as an int >= ``minimum``, or raise naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name}: expected an integer, got {type(value).__name__}")
+    if value < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value}")
+    return int(value)
+
+
+def positive_float(value: Any, name: str, allow_zero: bool = False) -> float:
+    """Return ``value`` as a finite float > 0 (or >= 0), or raise naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{name}: expected a real number, got {type(value).__name__}")
+    v = float(value)
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name}: expected a finite number {bound}, got {value}")
+    return v
+
+
+def sample_time(Ts: Any) -> float | None:
+    """Validate a sample time: None (continuous time) or a positive number."""
+    if Ts is None:
+        return None
+    return positive_float(Ts, "Ts")

@@ -1,0 +1,38 @@
+"""Type stub of the compiled core (private)."""
+
+import numpy as np
+from numpy.typing import NDArray
+
+class SingularModelError(ArithmeticError): ...
+
+def frequency_response(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    theta: NDArray[np.float64],
+    basis: NDArray[np.float64],
+    n_points: int,
+    z: NDArray[np.complex128],
+) -> NDArray[np.complex128]: ...
+
+class Problem:
+    def __init__(
+        self,
+        n: int,
+        r: int,
+        l: int,
+        nb: int,
+        n_points: int,
+        z: NDArray[np.complex128],
+        g: NDArray[np.complex128],
+        sigma: NDArray[np.float64],
+        basis: NDArray[np.float64],
+    ) -> None: ...
+    @property
+    def n_residuals(self) -> int: ...
+    def residual(self, theta: NDArray[np.float64]) -> NDArray[np.complex128]: ...
+    def vnls(self, theta: NDArray[np.float64]) -> float: ...
+    def gauss_newton(
+        self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...

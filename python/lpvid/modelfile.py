@@ -1,0 +1,118 @@
+"""The lpvid model file: versioned JSON, written whole or not at all.
+
+Format (version 1)::
+
+    {
+      "format": "lpvid-model",
+      "version": 1,
+      "content": {
+        "n_states": n, "n_inputs": r, "n_outputs": l, "n_basis": Nb,
+        "Ts": float or null,              # null: continuous time
+        "basis": {"kind": "polynomial" | "legendre", "degree": d,
+                  "domain": [[lo, hi], ...] or null, "n_params": Np},
+        "p_range": [lo, hi] or [[lo, hi], ...] or null,
+        "A": [...], "B": [...], "C": [...], "D": [...]   # nested lists (Nb+1, rows, cols)
+      },
+      "sha256": hex digest of the canonical JSON of "content"
+    }
+
+Floats are written with Python's shortest round-trip representation, so a
+model read back is equal to the one saved, to the last bit. The checksum
+catches a damaged file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lpvid._files import write_atomic
+from lpvid.basis import basis_from_dict
+from lpvid.model import LpvModel
+
+__all__ = ["FORMAT", "VERSION", "save_model", "load_model", "model_to_dict", "model_from_dict"]
+
+FORMAT = "lpvid-model"
+VERSION = 1
+
+
+def _canonical(content: dict[str, Any]) -> bytes:
+    return json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
+
+
+def model_to_dict(model: LpvModel) -> dict[str, Any]:
+    """The ``content`` part of the file for a model."""
+    n, r, l, nb = model.shape
+    content: dict[str, Any] = {
+        "n_states": n,
+        "n_inputs": r,
+        "n_outputs": l,
+        "n_basis": nb,
+        "Ts": model.Ts,
+        "basis": model.basis.to_dict(),
+        "p_range": model.p_range,
+    }
+    for name, arr in model.matrices().items():
+        content[name] = arr.tolist()
+    return content
+
+
+def model_from_dict(content: dict[str, Any]) -> LpvModel:
+    """Rebuild a model from the ``content`` part of a file."""
+    basis = basis_from_dict(content["basis"])
+    model = LpvModel(
+        *(np.array(content[x], dtype=np.float64) for x in ("A", "B", "C", "D")),
+        basis=basis,
+        Ts=content["Ts"],
+        p_range=content.get("p_range"),
+    )
+    expected = (content["n_states"], content["n_inputs"], content["n_outputs"], content["n_basis"])
+    if model.shape != tuple(expected):
+        raise ValueError(f"sizes {model.shape} differ from the recorded {tuple(expected)}")
+    return model
+
+
+def save_model(model: LpvModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model`` to ``path`` in the lpvid JSON format; see :meth:`LpvModel.save`."""
+    content = model_to_dict(model)
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "content": content,
+        "sha256": hashlib.sha256(_canonical(content)).hexdigest(),
+    }
+    text = json.dumps(doc, indent=1, allow_nan=False).encode()
+    return write_atomic(path, lambda fh: fh.write(text))
+
+
+def load_model(path: str | os.PathLike[str]) -> LpvModel:
+    """Read a model file; see :meth:`LpvModel.load`."""
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_bytes())
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(
+            f"path: {p.name} is not an lpvid model file (not valid JSON: {exc})"
+        ) from exc
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise ValueError(f"path: {p.name} is not an lpvid model file")
+    if doc.get("version") != VERSION:
+        raise ValueError(
+            f"path: {p.name} has model file version {doc.get('version')!r}; this lpvid reads "
+            f"version {VERSION}"
+        )
+    content = doc.get("content")
+    if (
+        not isinstance(content, dict)
+        or doc.get("sha256") != hashlib.sha256(_canonical(content)).hexdigest()
+    ):
+        raise ValueError(f"path: {p.name} is damaged (its checksum does not match its content)")
+    try:
+        return model_from_dict(content)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"path: {p.name} is damaged ({exc})") from exc

@@ -1,0 +1,43 @@
+//! Typed errors of the numerical core.
+//!
+//! Every fallible operation returns [`Result`]; the Python binding maps each
+//! variant to one Python exception type in a single place.
+
+/// Errors raised by the lpvid core.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// An argument has the wrong size or an invalid value.
+    #[error("{name}: {message}")]
+    InvalidArgument {
+        /// Name of the offending argument, as the user knows it.
+        name: &'static str,
+        /// What was expected and what was found.
+        message: String,
+    },
+    /// `zI - A(p)` cannot be inverted at one (point, frequency) pair: a
+    /// pole of the frozen model lies exactly on the evaluation point.
+    #[error("zI - A(p) is singular at scheduling point {point}, frequency line {line}")]
+    Singular {
+        /// Index of the scheduling point.
+        point: usize,
+        /// Index of the frequency line.
+        line: usize,
+    },
+    /// A linear-algebra or cone-solver failure that is not the user's input.
+    #[error("numerical failure: {0}")]
+    Numerical(String),
+    /// The run was stopped by the caller (for example Ctrl-C in Python).
+    #[error("interrupted")]
+    Interrupted,
+}
+
+/// Result type of the lpvid core.
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Shorthand for an [`Error::InvalidArgument`].
+pub(crate) fn invalid(name: &'static str, message: impl Into<String>) -> Error {
+    Error::InvalidArgument {
+        name,
+        message: message.into(),
+    }
+}

@@ -1,0 +1,437 @@
+//! An identification problem: a model shape, FRF data and the basis values
+//! at the data's scheduling points. Evaluates the weighted residual, V_NLS
+//! (method.md (7)), its gradient and the Gauss-Newton matrix `J^T J` from the
+//! analytic Jacobian without forming the full Jacobian (method.md section 3):
+//! per point `q` the Gram matrix `H_q = J_q^T J_q` of the frozen LTI model is
+//! accumulated, and `J^T J = sum_q (psi_q psi_q^T) kron H_q`.
+
+use crate::data::FrfData;
+use crate::error::{invalid, Error, Result};
+use crate::lanes::{Cx, LANES};
+use crate::layout::{FreeSet, Matrix, Shape};
+use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::response::with_constant;
+use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
+use faer::{Accum, Mat, MatRef, Par};
+use num_complex::Complex64 as C64;
+use rayon::prelude::*;
+
+/// Real Jacobian columns per task (the unit of parallel work).
+const TASK_COLUMNS: usize = 1024;
+/// Real Jacobian columns per Gram update: large enough for an efficient
+/// matrix product, small enough to stay in cache.
+const BLOCK_COLUMNS: usize = 256;
+
+/// Shape, data and basis values of one identification problem.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    shape: Shape,
+    data: FrfData,
+    /// `N x (Nb + 1)` row-major, first column all ones.
+    psi: Vec<f64>,
+    /// For every entry of theta: its basis index `i` and its index in the
+    /// LTI parameter vector `[vec A; vec B; vec C; vec D]`.
+    param_map: Vec<(usize, usize)>,
+}
+
+/// V_NLS with its gradient and Gauss-Newton matrix at one `theta`,
+/// restricted to the free parameters.
+#[derive(Debug, Clone)]
+pub struct GaussNewton {
+    /// `V_NLS = r^T r`, `r` the real weighted residual.
+    pub vnls: f64,
+    /// The weighted complex residual `(G - Gm) / sigma`, `(N, F, l, r)`.
+    pub residual: Vec<C64>,
+    /// `dV/dtheta = 2 J^T r` over the free parameters.
+    pub gradient: Vec<f64>,
+    /// `J^T J` over the free parameters, symmetric, column-major.
+    pub gram: Vec<f64>,
+}
+
+impl GaussNewton {
+    /// Number of free parameters.
+    pub fn dim(&self) -> usize {
+        self.gradient.len()
+    }
+}
+
+/// A half-open range of frequency lines at one point: the unit of parallel work.
+#[derive(Debug, Clone, Copy)]
+struct Task {
+    point: usize,
+    first: usize,
+    end: usize,
+}
+
+impl Problem {
+    /// Checked constructor. `basis` holds `psi_1..psi_Nb` at every point,
+    /// `N x Nb` row-major.
+    pub fn new(shape: Shape, data: FrfData, basis: &[f64]) -> Result<Self> {
+        if data.l() != shape.l || data.r() != shape.r {
+            return Err(invalid(
+                "data",
+                format!(
+                    "data has {} outputs and {} inputs, the model {} and {}",
+                    data.l(),
+                    data.r(),
+                    shape.l,
+                    shape.r
+                ),
+            ));
+        }
+        let psi = with_constant(basis, data.n_points(), shape.nb)?;
+        let mut param_map = Vec::with_capacity(shape.len());
+        for x in Matrix::ALL {
+            for i in 0..shape.n_coef() {
+                let off = shape.lti_offset(x);
+                param_map.extend((0..shape.matrix_len(x)).map(|p| (i, off + p)));
+            }
+        }
+        Ok(Problem {
+            shape,
+            data,
+            psi,
+            param_map,
+        })
+    }
+
+    /// The model shape.
+    pub fn shape(&self) -> &Shape {
+        &self.shape
+    }
+
+    /// The data.
+    pub fn data(&self) -> &FrfData {
+        &self.data
+    }
+
+    /// `[1, psi_1(p[q]), ..., psi_Nb(p[q])]`.
+    pub fn psi(&self, q: usize) -> &[f64] {
+        let m = self.shape.n_coef();
+        &self.psi[q * m..(q + 1) * m]
+    }
+
+    /// Number of complex residuals `N F l r`.
+    pub fn n_residuals(&self) -> usize {
+        self.data.n_residuals()
+    }
+
+    /// Weighted complex residual `(G - Gm) / sigma`, `(N, F, l, r)` row-major.
+    pub fn residual(&self, theta: &[f64]) -> Result<Vec<C64>> {
+        self.shape.check_theta(theta)?;
+        let forms = self.forms(theta);
+        let mut out = vec![C64::new(0.0, 0.0); self.n_residuals()];
+        self.split(&mut out).into_par_iter().try_for_each_init(
+            || Resolvent::new(&self.shape),
+            |res, (task, slice)| {
+                for first in (task.first..task.end).step_by(LANES) {
+                    let end = (first + LANES).min(task.end);
+                    self.batch(&forms[task.point], res, task.point, (first, end), false)?;
+                    self.write_residual(res, task, (first, end), slice);
+                }
+                Ok::<_, Error>(())
+            },
+        )?;
+        Ok(out)
+    }
+
+    /// `V_NLS(theta)`.
+    pub fn cost(&self, theta: &[f64]) -> Result<f64> {
+        Ok(self.residual(theta)?.iter().map(|e| e.norm_sqr()).sum())
+    }
+
+    /// Residual, V_NLS, gradient and `J^T J`, the last two restricted to `free`.
+    pub fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
+        self.shape.check_theta(theta)?;
+        if free.full_len() != self.shape.len() {
+            return Err(invalid("free", "mask length differs from theta"));
+        }
+        let forms = self.forms(theta);
+        let lti = self.shape.lti_len();
+        let mut residual = vec![C64::new(0.0, 0.0); self.n_residuals()];
+        let parts = self
+            .split(&mut residual)
+            .into_par_iter()
+            .map_init(
+                || Workspace::new(&self.shape),
+                |ws, (task, slice)| self.task_gram(&forms[task.point], task, slice, ws),
+            )
+            .collect::<Result<Vec<_>>>()?;
+        let n_points = self.data.n_points();
+        let mut grams = vec![vec![0.0; lti * lti]; n_points];
+        let mut jtr = vec![vec![0.0; lti]; n_points];
+        for part in parts {
+            let (h, b) = (&mut grams[part.point], &mut jtr[part.point]);
+            for j in 0..lti {
+                let col = part.gram.col(j);
+                for i in j..lti {
+                    h[i + j * lti] += col[i];
+                }
+            }
+            b.iter_mut().zip(&part.jtr).for_each(|(x, y)| *x += y);
+        }
+        for h in grams.iter_mut() {
+            for j in 0..lti {
+                for i in j + 1..lti {
+                    h[j + i * lti] = h[i + j * lti];
+                }
+            }
+        }
+        let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
+        let (gradient, gram) = self.assemble(&grams, &jtr, free);
+        Ok(GaussNewton {
+            vnls,
+            residual,
+            gradient,
+            gram,
+        })
+    }
+
+    /// Hessenberg forms of the frozen models at every point.
+    fn forms(&self, theta: &[f64]) -> Vec<Hessenberg> {
+        (0..self.data.n_points())
+            .into_par_iter()
+            .map(|q| Hessenberg::new(&self.shape, &Frozen::at(&self.shape, theta, self.psi(q))))
+            .collect()
+    }
+
+    /// Cut the lines of every point into tasks, each with its slice of `out`.
+    fn split<'a>(&self, out: &'a mut [C64]) -> Vec<(Task, &'a mut [C64])> {
+        let lr = self.shape.l * self.shape.r;
+        let nf = self.data.n_lines();
+        let per_task = (TASK_COLUMNS / (2 * lr * LANES)).max(1) * LANES;
+        let mut rest = out;
+        let mut tasks = Vec::new();
+        for point in 0..self.data.n_points() {
+            for first in (0..nf).step_by(per_task) {
+                let end = (first + per_task).min(nf);
+                let (head, tail) = std::mem::take(&mut rest).split_at_mut((end - first) * lr);
+                tasks.push((Task { point, first, end }, head));
+                rest = tail;
+            }
+        }
+        tasks
+    }
+
+    /// Evaluate the frozen model at lines `first..end` (at most [`LANES`]) of point `q`.
+    fn batch(
+        &self,
+        form: &Hessenberg,
+        res: &mut Resolvent,
+        q: usize,
+        (first, end): (usize, usize),
+        left: bool,
+    ) -> Result<()> {
+        res.evaluate(form, &lanes_of(self.data.z(), first, end), left)
+            .map_err(|lane| Error::Singular {
+                point: q,
+                line: (first + lane).min(end - 1),
+            })
+    }
+
+    /// Write `(G - Gm) / sigma` of lines `first..end` into the task's slice.
+    fn write_residual(
+        &self,
+        res: &Resolvent,
+        task: Task,
+        (first, end): (usize, usize),
+        slice: &mut [C64],
+    ) {
+        let (l, r) = (self.shape.l, self.shape.r);
+        for (lane, k) in (first..end).enumerate() {
+            let off = self.data.offset(task.point, k);
+            let (gm, w) = (&self.data.g()[off..], &self.data.weight()[off..]);
+            let dst = &mut slice[(k - task.first) * l * r..];
+            for j in 0..l {
+                for c in 0..r {
+                    let e = j * r + c;
+                    dst[e] = (res.g[j + c * l].lane(lane) - gm[e]) * w[e];
+                }
+            }
+        }
+    }
+
+    /// The Gram matrix (lower triangle) and `J^T r` of one task's Jacobian rows.
+    ///
+    /// The Jacobian is built block by block in row-major `lti x cols` form
+    /// with the [`LANES`] frequencies of a batch side by side in each row, so
+    /// that every lane operation writes contiguous memory; the order of the
+    /// columns does not matter to `J^T J`.
+    fn task_gram(
+        &self,
+        form: &Hessenberg,
+        task: Task,
+        slice: &mut [C64],
+        ws: &mut Workspace,
+    ) -> Result<TaskGram> {
+        let Shape { n, r, l, .. } = self.shape;
+        let lti = self.shape.lti_len();
+        let (na, nb, nc) = (n * n, n * r, l * n);
+        let lr = l * r;
+        let q = task.point;
+        let batch_cols = 2 * lr * LANES;
+        let batches_per_block = (BLOCK_COLUMNS / batch_cols).max(1);
+        let mut gram = Mat::<f64>::zeros(lti, lti);
+        let mut jtr = vec![0.0; lti];
+        let batches: Vec<usize> = (task.first..task.end).step_by(LANES).collect();
+        for block in batches.chunks(batches_per_block) {
+            let cols = block.len() * batch_cols;
+            ws.jt.resize(lti * cols, 0.0);
+            ws.rr.resize(cols, 0.0);
+            let jt = &mut ws.jt[..lti * cols];
+            // The A rows are written in full below; B, C and D are sparse.
+            jt[na * cols..].iter_mut().for_each(|v| *v = 0.0);
+            for (bi, &first) in block.iter().enumerate() {
+                let end = (first + LANES).min(task.end);
+                self.batch(form, &mut ws.resolvent, q, (first, end), true)?;
+                self.write_residual(&ws.resolvent, task, (first, end), slice);
+                let res = &ws.resolvent;
+                for j in 0..l {
+                    let y = &res.yt[j * n..(j + 1) * n];
+                    for c in 0..r {
+                        let e = j * r + c;
+                        let mut w = [0.0; LANES];
+                        let mut err = Cx::default();
+                        for (lane, k) in (first..end).enumerate() {
+                            w[lane] = self.data.weight()[self.data.offset(q, k) + e];
+                            let v = slice[(k - task.first) * lr + e];
+                            err.re[lane] = v.re;
+                            err.im[lane] = v.im;
+                        }
+                        let base = (bi * lr + e) * 2 * LANES;
+                        ws.rr[base..base + LANES].copy_from_slice(&err.re);
+                        ws.rr[base + LANES..base + 2 * LANES].copy_from_slice(&err.im);
+                        let put = |jt: &mut [f64], row: usize, v: Cx| {
+                            let at = row * cols + base;
+                            jt[at..at + LANES].copy_from_slice(&v.re);
+                            jt[at + LANES..at + 2 * LANES].copy_from_slice(&v.im);
+                        };
+                        let x = &res.x[c * n..(c + 1) * n];
+                        // dG_jc / dA_ab = Y_ja X_bc
+                        for (b, &xb) in x.iter().enumerate() {
+                            let xb = xb.scale_lanes(&w);
+                            for (a, &ya) in y.iter().enumerate() {
+                                put(jt, a + b * n, ya * xb);
+                            }
+                        }
+                        // dG_jc / dB_ac = Y_ja
+                        for (a, &ya) in y.iter().enumerate() {
+                            put(jt, na + a + c * n, ya.scale_lanes(&w));
+                        }
+                        // dG_jc / dC_jb = X_bc
+                        for (b, &xb) in x.iter().enumerate() {
+                            put(jt, na + nb + j + b * l, xb.scale_lanes(&w));
+                        }
+                        // dG_jc / dD_jc = 1
+                        put(
+                            jt,
+                            na + nb + nc + j + c * l,
+                            Cx {
+                                re: w,
+                                im: [0.0; LANES],
+                            },
+                        );
+                    }
+                }
+            }
+            let jt = MatRef::from_row_major_slice(&ws.jt[..lti * cols], lti, cols);
+            let rr = MatRef::from_column_major_slice(&ws.rr[..cols], cols, 1);
+            tri_matmul(
+                gram.as_mut(),
+                BlockStructure::TriangularLower,
+                Accum::Add,
+                jt,
+                BlockStructure::Rectangular,
+                jt.transpose(),
+                BlockStructure::Rectangular,
+                1.0,
+                Par::Seq,
+            );
+            let out = faer::ColMut::from_slice_mut(&mut jtr);
+            matmul(out.as_mat_mut(), Accum::Add, jt, rr, 1.0, Par::Seq);
+        }
+        Ok(TaskGram {
+            point: q,
+            gram,
+            jtr,
+        })
+    }
+
+    /// Gradient and `J^T J` over the free parameters from the per-point
+    /// Gram matrices. For every pair of basis indices `i <= j`,
+    /// `S_ij = sum_q psi_qi psi_qj H_q`; entry `(u, v)` of `J^T J` is
+    /// `S_{i_u i_v}[p_u, p_v]` (and `S_ji = S_ij^T`).
+    fn assemble(
+        &self,
+        full: &[Vec<f64>],
+        jtr: &[Vec<f64>],
+        free: &FreeSet,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let lti = self.shape.lti_len();
+        let m = self.shape.n_coef();
+        let n_points = self.data.n_points();
+        // Free parameters grouped by basis index: (position among free, LTI index).
+        let mut by_basis: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m];
+        for (a, &u) in free.indices().iter().enumerate() {
+            let (i, p) = self.param_map[u];
+            by_basis[i].push((a, p));
+        }
+        let nf = free.len();
+        let mut gram = vec![0.0; nf * nf];
+        let mut s = vec![0.0; lti * lti];
+        for i in 0..m {
+            for j in i..m {
+                s.iter_mut().for_each(|v| *v = 0.0);
+                for (q, hq) in full.iter().enumerate().take(n_points) {
+                    let c = self.psi(q)[i] * self.psi(q)[j];
+                    if c != 0.0 {
+                        s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h);
+                    }
+                }
+                for &(b, pv) in &by_basis[j] {
+                    for &(a, pu) in &by_basis[i] {
+                        let v = s[pu + pv * lti];
+                        gram[a + b * nf] = v;
+                        gram[b + a * nf] = v;
+                    }
+                }
+            }
+        }
+        let gradient = free
+            .indices()
+            .iter()
+            .map(|&u| {
+                let (i, p) = self.param_map[u];
+                2.0 * (0..n_points)
+                    .map(|q| self.psi(q)[i] * jtr[q][p])
+                    .sum::<f64>()
+            })
+            .collect();
+        (gradient, gram)
+    }
+}
+
+/// Per-thread scratch space of the Gauss-Newton evaluation.
+struct Workspace {
+    resolvent: Resolvent,
+    jt: Vec<f64>,
+    rr: Vec<f64>,
+}
+
+impl Workspace {
+    fn new(shape: &Shape) -> Self {
+        Workspace {
+            resolvent: Resolvent::new(shape),
+            jt: Vec::new(),
+            rr: Vec::new(),
+        }
+    }
+}
+
+/// One task's contribution: lower triangle of `J^T J` and `J^T r`.
+struct TaskGram {
+    point: usize,
+    gram: Mat<f64>,
+    jtr: Vec<f64>,
+}

@@ -1,0 +1,26 @@
+//! The Python binding `lpvid._core`: conversions, exceptions and thin
+//! wrappers. Nothing numerical happens here.
+
+mod convert;
+mod problem_py;
+
+use pyo3::prelude::*;
+
+pyo3::create_exception!(
+    _core,
+    SingularModelError,
+    pyo3::exceptions::PyArithmeticError,
+    "zI - A(p) is singular at some scheduling point and frequency."
+);
+
+/// The compiled core of lpvid (private: use the `lpvid` package).
+#[pymodule]
+#[pyo3(name = "_core")]
+fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add(
+        "SingularModelError",
+        m.py().get_type::<SingularModelError>(),
+    )?;
+    problem_py::register(m)?;
+    Ok(())
+}

@@ -1,0 +1,77 @@
+//! Batched frequency responses of an LPV model at frozen scheduling values.
+
+use crate::error::{invalid, Error, Result};
+use crate::lanes::LANES;
+use crate::layout::Shape;
+use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use num_complex::Complex64 as C64;
+use rayon::prelude::*;
+
+/// Prepend the constant basis function to `N x Nb` basis values, giving the
+/// `N x (Nb + 1)` rows `[1, psi_1(p[q]), ..., psi_Nb(p[q])]`.
+pub fn with_constant(basis: &[f64], n_points: usize, nb: usize) -> Result<Vec<f64>> {
+    if basis.len() != n_points * nb {
+        return Err(invalid(
+            "psi",
+            format!(
+                "expected {} basis values ({} points x {} functions), got {}",
+                n_points * nb,
+                n_points,
+                nb,
+                basis.len()
+            ),
+        ));
+    }
+    if basis.iter().any(|v| !v.is_finite()) {
+        return Err(invalid("psi", "basis values contain NaN or Inf"));
+    }
+    let mut psi = Vec::with_capacity(n_points * (nb + 1));
+    for q in 0..n_points {
+        psi.push(1.0);
+        psi.extend_from_slice(&basis[q * nb..(q + 1) * nb]);
+    }
+    Ok(psi)
+}
+
+/// Frequency response `C (zI - A)^-1 B + D` of the LPV model at every
+/// (point, line) pair, `(N, F, l, r)` row-major. `basis` holds the `N x Nb`
+/// basis values `psi_1..psi_Nb` at the points.
+pub fn frequency_response(
+    shape: &Shape,
+    theta: &[f64],
+    basis: &[f64],
+    n_points: usize,
+    z: &[C64],
+) -> Result<Vec<C64>> {
+    shape.check_theta(theta)?;
+    let psi = with_constant(basis, n_points, shape.nb)?;
+    let (l, r, m) = (shape.l, shape.r, shape.n_coef());
+    let stride = z.len() * l * r;
+    let mut out = vec![C64::new(0.0, 0.0); n_points * stride];
+    if stride == 0 {
+        return Ok(out);
+    }
+    out.par_chunks_mut(stride)
+        .enumerate()
+        .try_for_each(|(q, chunk)| {
+            let form = Hessenberg::new(shape, &Frozen::at(shape, theta, &psi[q * m..(q + 1) * m]));
+            let mut res = Resolvent::new(shape);
+            for first in (0..z.len()).step_by(LANES) {
+                let end = (first + LANES).min(z.len());
+                res.evaluate(&form, &lanes_of(z, first, end), false)
+                    .map_err(|lane| Error::Singular {
+                        point: q,
+                        line: (first + lane).min(end - 1),
+                    })?;
+                for (lane, k) in (first..end).enumerate() {
+                    for j in 0..l {
+                        for c in 0..r {
+                            chunk[(k * l + j) * r + c] = res.g[j + c * l].lane(lane);
+                        }
+                    }
+                }
+            }
+            Ok(())
+        })?;
+    Ok(out)
+}

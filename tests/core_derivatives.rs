@@ -1,0 +1,132 @@
+//! The analytic gradient and Gauss-Newton matrix of the core against central
+//! finite differences of the residual, on small random problems.
+
+use lpvid::{FreeSet, FrfData, Matrix, Problem, Shape};
+use num_complex::Complex64 as C64;
+
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
+    }
+}
+
+fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
+    let shape = Shape::new(n, r, l, nb).unwrap();
+    let mut rng = Lcg(42 + n as u64);
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next()).collect();
+    let a0 = shape.block(Matrix::A, 0);
+    for k in 0..n {
+        theta[a0.start + k * (n + 1)] += if discrete { 0.2 } else { -1.5 };
+    }
+    let n_points = 4;
+    let lines = 13;
+    let z: Vec<C64> = (0..lines)
+        .map(|k| {
+            let w = 0.1 + 0.2 * k as f64;
+            if discrete {
+                C64::from_polar(1.0, w)
+            } else {
+                C64::new(0.0, 4.0 * w)
+            }
+        })
+        .collect();
+    let basis: Vec<f64> = (0..n_points)
+        .flat_map(|q| {
+            let s = -1.0 + 2.0 * q as f64 / (n_points - 1) as f64;
+            (1..=nb).map(move |i| s.powi(i as i32))
+        })
+        .collect();
+    let len = n_points * lines * l * r;
+    let g: Vec<C64> = (0..len).map(|_| C64::new(rng.next(), rng.next())).collect();
+    let sigma: Vec<f64> = (0..len).map(|_| 0.5 + rng.next()).collect();
+    let data = FrfData::new(n_points, l, r, z, g, &sigma).unwrap();
+    (Problem::new(shape, data, &basis).unwrap(), theta)
+}
+
+fn real_residual(p: &Problem, theta: &[f64]) -> Vec<f64> {
+    let e = p.residual(theta).unwrap();
+    e.iter().map(|v| v.re).chain(e.iter().map(|v| v.im)).collect()
+}
+
+fn check(n: usize, r: usize, l: usize, nb: usize, discrete: bool, mask: Option<Vec<bool>>) {
+    let (p, theta) = problem(n, r, l, nb, discrete);
+    let free = FreeSet::for_shape(p.shape(), mask.as_deref()).unwrap();
+    let gn = p.gauss_newton(&theta, &free).unwrap();
+    let r0 = real_residual(&p, &theta);
+    let v0: f64 = r0.iter().map(|x| x * x).sum();
+    assert!((gn.vnls - v0).abs() <= 1e-12 * v0);
+    // Explicit Jacobian by central differences, free columns only.
+    let h = 1e-6;
+    let cols: Vec<Vec<f64>> = free
+        .indices()
+        .iter()
+        .map(|&i| {
+            let (mut up, mut down) = (theta.clone(), theta.clone());
+            up[i] += h;
+            down[i] -= h;
+            let (ru, rd) = (real_residual(&p, &up), real_residual(&p, &down));
+            ru.iter().zip(&rd).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+        })
+        .collect();
+    let m = free.len();
+    let gmax = gn.gradient.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let hmax = gn.gram.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for a in 0..m {
+        let g_fd: f64 = 2.0 * cols[a].iter().zip(&r0).map(|(j, r)| j * r).sum::<f64>();
+        assert!(
+            (gn.gradient[a] - g_fd).abs() <= 1e-6 * gmax,
+            "gradient {a}: {} vs {g_fd}",
+            gn.gradient[a]
+        );
+        for b in 0..m {
+            let h_fd: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
+            let got = gn.gram[a + b * m];
+            assert!((got - h_fd).abs() <= 1e-6 * hmax, "J^T J ({a}, {b}): {got} vs {h_fd}");
+            assert_eq!(got, gn.gram[b + a * m]);
+        }
+    }
+}
+
+#[test]
+fn derivatives_discrete_mimo() {
+    check(3, 2, 2, 2, true, None);
+}
+
+#[test]
+fn derivatives_continuous_simo() {
+    check(4, 1, 3, 1, false, None);
+}
+
+#[test]
+fn derivatives_lti() {
+    check(2, 1, 1, 0, true, None);
+}
+
+#[test]
+fn derivatives_with_fixed_parameters() {
+    let shape = Shape::new(3, 2, 2, 2).unwrap();
+    let mut mask = vec![true; shape.len()];
+    for i in shape.block(Matrix::D, 0).start..shape.len() {
+        mask[i] = false; // all of D fixed
+    }
+    mask[shape.block(Matrix::A, 2).start + 4] = false;
+    check(3, 2, 2, 2, true, Some(mask));
+}
+
+#[test]
+fn singular_model_is_an_error_not_a_panic() {
+    let shape = Shape::new(1, 1, 1, 0).unwrap();
+    let z = vec![C64::new(0.5, 0.0), C64::new(0.0, 1.0)];
+    let data = FrfData::new(1, 1, 1, z, vec![C64::new(1.0, 0.0); 2], &[1.0, 1.0]).unwrap();
+    let p = Problem::new(shape, data, &[]).unwrap();
+    let theta = vec![0.5, 1.0, 1.0, 0.0];
+    let err = p.cost(&theta).unwrap_err();
+    assert_eq!(err, lpvid::Error::Singular { point: 0, line: 0 });
+    assert!(p.gauss_newton(&theta, &FreeSet::all(4)).is_err());
+}

@@ -1,0 +1,59 @@
+"""Basis functions: values, scaling, sup norms, names."""
+
+import numpy as np
+import pytest
+from numpy.polynomial import legendre
+
+import lpvid
+
+
+def test_polynomial_maps_the_domain_to_unit_interval():
+    b = lpvid.Polynomial(4, domain=(24, 48))
+    p = np.array([24.0, 30.0, 36.0, 42.0, 48.0])
+    s = (p - 36.0) / 12.0
+    np.testing.assert_allclose(b(p), np.stack([s, s**2, s**3, s**4], axis=1))
+    assert b.names == ["s", "s^2", "s^3", "s^4"]
+    np.testing.assert_allclose(b.sup_norms((24, 48)), [1, 1, 1, 1])
+    np.testing.assert_allclose(b.sup_norms((36, 42)), [0.5, 0.25, 0.125, 0.0625])
+
+
+def test_polynomial_without_domain_uses_p():
+    b = lpvid.Polynomial(2)
+    np.testing.assert_allclose(b([2.0, -3.0]), [[2, 4], [-3, 9]])
+    np.testing.assert_allclose(b.sup_norms((-3, 2)), [3, 9])
+
+
+def test_legendre_matches_numpy():
+    b = lpvid.Legendre(3, domain=(0, 2))
+    p = np.linspace(0, 2, 7)
+    s = p - 1
+    ref = np.stack([legendre.legval(s, np.eye(4)[d]) for d in (1, 2, 3)], axis=1)
+    np.testing.assert_allclose(b(p), ref, atol=1e-15)
+    np.testing.assert_allclose(b.sup_norms((0, 2)), [1, 1, 1])
+
+
+def test_two_scheduling_parameters():
+    b = lpvid.Polynomial(2, domain=[(0, 1), (0, 2)])
+    assert b.n_params == 2
+    assert b.names == ["s1", "s2", "s1^2", "s1*s2", "s2^2"]
+    v = b(np.array([[1.0, 0.0], [0.5, 2.0]]))
+    np.testing.assert_allclose(v, [[1, -1, 1, -1, 1], [0, 1, 0, 0, 1]])
+
+
+def test_custom_basis():
+    b = lpvid.CustomBasis([np.sin, lambda p: p**2], names=["sin", "sq"])
+    np.testing.assert_allclose(b([0.0, 1.0]), [[0, 0], [np.sin(1), 1]])
+    np.testing.assert_allclose(b.sup_norms((-2, 1)), [1.0, 4.0], rtol=1e-6)
+
+
+def test_degree_zero_is_an_lti_model():
+    assert len(lpvid.Polynomial(0)) == 0
+    m = lpvid.LpvModel(np.eye(2) * 0.5, np.ones((2, 1)), np.ones((1, 2)), Ts=1.0)
+    assert m.n_basis == 0 and m.A.shape == (1, 2, 2)
+
+
+@pytest.mark.parametrize("basis", [lpvid.Polynomial(3, domain=(1, 2)), lpvid.Legendre(2, (0, 1))])
+def test_to_dict_round_trip(basis):
+    from lpvid.basis import basis_from_dict
+
+    assert basis_from_dict(basis.to_dict()) == basis
