@@ -52,8 +52,10 @@ def test_model_round_trip_is_exact(tmp_path, rng, basis):
         rng.normal(size=(nb + 1, 3, 2)),
         basis,
         Ts=1 / 3000,
+        info={"coherent_form": "observability", "condition": 12.5},
     )
     back = lpvid.LpvModel.load(m.save(tmp_path / "m.json"))
+    assert back.info == m.info
     assert back == m
     np.testing.assert_array_equal(back.theta, m.theta)
     assert back.p_range == m.p_range

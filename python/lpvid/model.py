@@ -62,6 +62,9 @@ class LpvModel:
         The scheduling range the model is meant for; used by
         :meth:`group_norms` for ``||psi_i||_inf``. Defaults to the basis
         domain when it has one.
+    info : dict, optional
+        Free-form, JSON-ready notes on how the model was obtained (for
+        example the coherent form SMILE used); saved with the model.
 
     Examples
     --------
@@ -83,6 +86,7 @@ class LpvModel:
         basis: Basis | None = None,
         Ts: float | None = None,
         p_range: Any = None,
+        info: dict[str, Any] | None = None,
     ) -> None:
         if basis is None:
             basis = Polynomial(0)
@@ -115,6 +119,9 @@ class LpvModel:
             p_range = np.asarray(real_array(p_range, "p_range")).tolist()
             basis.sup_norms(p_range)  # validates the range
         self.p_range = p_range
+        if info is not None and not isinstance(info, dict):
+            raise TypeError(f"info: expected a dict, got {type(info).__name__}")
+        self.info: dict[str, Any] = dict(info or {})
 
     # ------------------------------------------------------------------ sizes
     @property

@@ -11,6 +11,7 @@ Format (version 1)::
         "basis": {"kind": "polynomial" | "legendre", "degree": d,
                   "domain": [[lo, hi], ...] or null, "n_params": Np},
         "p_range": [lo, hi] or [[lo, hi], ...] or null,
+        "info": {...},                    # free-form notes (LpvModel.info)
         "A": [...], "B": [...], "C": [...], "D": [...]   # nested lists (Nb+1, rows, cols)
       },
       "sha256": hex digest of the canonical JSON of "content"
@@ -56,6 +57,7 @@ def model_to_dict(model: LpvModel) -> dict[str, Any]:
         "Ts": model.Ts,
         "basis": model.basis.to_dict(),
         "p_range": model.p_range,
+        "info": model.info,
     }
     for name, arr in model.matrices().items():
         content[name] = arr.tolist()
@@ -70,6 +72,7 @@ def model_from_dict(content: dict[str, Any]) -> LpvModel:
         basis=basis,
         Ts=content["Ts"],
         p_range=content.get("p_range"),
+        info=content.get("info"),
     )
     expected = (content["n_states"], content["n_inputs"], content["n_outputs"], content["n_basis"])
     if model.shape != tuple(expected):
