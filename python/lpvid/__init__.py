@@ -6,6 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
+from lpvid import datasets
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -30,6 +31,7 @@ __all__ = [
     "PathResult",
     "Polynomial",
     "SingularModelError",
+    "datasets",
     "fit_l21",
     "fit_nls",
     "fixed_mask",
