@@ -14,6 +14,7 @@ pub mod layout;
 pub mod lti;
 pub mod problem;
 pub mod response;
+pub mod simulate;
 
 #[cfg(feature = "python")]
 mod python;

@@ -3,6 +3,7 @@
 
 mod convert;
 mod problem_py;
+mod simulate_py;
 
 use pyo3::prelude::*;
 
@@ -22,5 +23,6 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.py().get_type::<SingularModelError>(),
     )?;
     problem_py::register(m)?;
+    simulate_py::register(m)?;
     Ok(())
 }
