@@ -12,6 +12,7 @@ from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
+from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 
 __version__ = "0.1.0"
@@ -23,10 +24,13 @@ __all__ = [
     "GroupNorms",
     "Legendre",
     "LpvModel",
+    "Multisine",
     "Polynomial",
     "SingularModelError",
+    "estimate_frf",
     "fixed_mask",
     "free_mask",
+    "multisine",
     "residual",
     "vnls",
 ]
