@@ -6,30 +6,40 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
+from lpvid import datasets
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
+from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
+from lpvid.results import FitResult, L21Result, PathResult
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Basis",
     "CustomBasis",
+    "FitResult",
     "FrfData",
     "GroupNorms",
+    "L21Result",
     "Legendre",
     "LpvModel",
     "Multisine",
+    "PathResult",
     "Polynomial",
     "SingularModelError",
+    "datasets",
     "estimate_frf",
+    "fit_l21",
+    "fit_nls",
     "fixed_mask",
     "free_mask",
+    "l21_path",
     "multisine",
     "residual",
     "vnls",

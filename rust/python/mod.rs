@@ -2,6 +2,7 @@
 //! wrappers. Nothing numerical happens here.
 
 mod convert;
+mod fit_py;
 mod problem_py;
 mod simulate_py;
 
@@ -23,6 +24,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.py().get_type::<SingularModelError>(),
     )?;
     problem_py::register(m)?;
+    fit_py::register(m)?;
     simulate_py::register(m)?;
     Ok(())
 }
