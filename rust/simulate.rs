@@ -403,21 +403,38 @@ impl<const K: usize, const NB: usize> Run<'_, K, NB> {
             .enumerate()
         {
             let psi = &self.basis[t * nb..(t + 1) * nb];
-            w[n..].copy_from_slice(ut);
-            // Two accumulators halve the sequential chain.
-            let mut z = [[[0.0; 4]; K]; 2];
-            for (b, (col, &wb)) in lanes.cols.chunks_exact(m).zip(w.iter()).enumerate() {
+            for (v, &x) in w[n..].iter_mut().zip(ut) {
+                *v = x;
+            }
+            // Column b of S(t), formed from the coefficients.
+            let column = |col: &[[V4; K]]| {
                 let mut s = col[0];
                 for (c, &weight) in col[1..].iter().zip(psi) {
                     for k in 0..K {
                         axpy4::<FUSED>(&mut s[k], weight, &c[k]);
                     }
                 }
+                s
+            };
+            // z = S(t) w, columns in pairs into two accumulators (half the
+            // sequential chain, both kept in registers).
+            let mut even = [[0.0; 4]; K];
+            let mut odd = [[0.0; 4]; K];
+            let pairs = lanes.cols.chunks_exact(2 * m);
+            let last = pairs.remainder();
+            for (cols, wb) in pairs.zip(w.chunks_exact(2)) {
+                let (s0, s1) = (column(&cols[..m]), column(&cols[m..]));
                 for k in 0..K {
-                    axpy4::<FUSED>(&mut z[b % 2][k], wb, &s[k]);
+                    axpy4::<FUSED>(&mut even[k], wb[0], &s0[k]);
+                    axpy4::<FUSED>(&mut odd[k], wb[1], &s1[k]);
                 }
             }
-            let [mut even, odd] = z;
+            if !last.is_empty() {
+                let s0 = column(last);
+                for k in 0..K {
+                    axpy4::<FUSED>(&mut even[k], w[width - 1], &s0[k]);
+                }
+            }
             for k in 0..K {
                 for j in 0..4 {
                     even[k][j] += odd[k][j];
