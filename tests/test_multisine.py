@@ -78,6 +78,9 @@ def test_orthogonal_multisines(r):
 
 def test_multisine_periodic():
     ms = lpvid.multisine(100, 10.0, (1.0, 3.0), seed=1)
+    assert (
+        repr(ms) == "Multisine(period=100, fs=10 Hz, 21 lines 1-3 Hz, full grid, rms=1, 1 input(s))"
+    )
     assert np.array_equal(ms.periodic(3), np.concatenate([ms.signal] * 3))
     mimo = lpvid.multisine(100, 10.0, (1.0, 3.0), seed=1, n_inputs=2)
     assert mimo.periodic(2).shape == (2, 200, 2)

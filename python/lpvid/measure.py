@@ -75,6 +75,13 @@ class Multisine:
         """Sample time ``1 / fs`` in seconds."""
         return 1.0 / self.fs
 
+    def __repr__(self) -> str:
+        return (
+            f"Multisine(period={self.period}, fs={self.fs:g} Hz, {self.lines.size} lines "
+            f"{self.freqs_hz[0]:g}-{self.freqs_hz[-1]:g} Hz, {self.grid} grid, "
+            f"rms={self.rms:g}, {self.n_inputs} input(s))"
+        )
+
     def periodic(self, n_periods: int) -> NDArray[np.float64]:
         """The signal repeated over ``n_periods`` periods along the time axis.
 
