@@ -14,6 +14,7 @@ from lpvid.data import FrfData
 from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
+from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
 
@@ -28,15 +29,18 @@ __all__ = [
     "L21Result",
     "Legendre",
     "LpvModel",
+    "Multisine",
     "PathResult",
     "Polynomial",
     "SingularModelError",
     "datasets",
+    "estimate_frf",
     "fit_l21",
     "fit_nls",
     "fixed_mask",
     "free_mask",
     "l21_path",
+    "multisine",
     "residual",
     "vnls",
 ]
