@@ -1,8 +1,17 @@
-"""Per-evaluation timings of the lpvid core on a gantry-size problem.
+"""Timings of the lpvid core on a gantry-size problem.
 
 Problem: n=6 states, l=2 outputs, r=1 input, Nb=4 basis functions, N=5
 scheduling points, F=300 lines, discrete time. Prints medians over many
-repetitions (the machines are shared and noisy: compare medians and ratios).
+repetitions (the machines are shared and noisy: compare medians and ratios):
+
+- one evaluation of residual, V_NLS, gradient and J^T J (and a numpy
+  implementation with the full Jacobian, for the ratio);
+- one Levenberg-Marquardt iteration and one SOCP step of the l2,1 fit, as
+  timed inside the core during real fits (step, trial V_NLS, J^T J at the
+  new point);
+- the cone program alone (build and solve with Clarabel in Rust), and the
+  same program written in cvxpy and solved with Clarabel from Python, the
+  way a Python user would write it.
 
 Run: python benches/bench_core.py [--repeat 200]
 """
@@ -15,6 +24,7 @@ import time
 import numpy as np
 
 import lpvid
+from lpvid import _core
 from lpvid.cost import build_problem
 
 
@@ -115,6 +125,72 @@ def main() -> None:
     print(f"  residual + V_NLS only (core)               : {t_cost * 1e3:8.3f} ms median")
     print(f"  same with the full Jacobian in numpy        : {t_np * 1e3:8.3f} ms median")
     print(f"  ratio numpy / core                          : {t_np / t_core:8.1f} x")
+    iteration_timings(model, data, problem, args.repeat)
+
+
+def perturbed(model: lpvid.LpvModel, scale: float, seed: int = 1) -> lpvid.LpvModel:
+    """The model with every parameter perturbed by ``scale`` (relative)."""
+    rng = np.random.default_rng(seed)
+    theta = model.theta
+    return model.with_theta(theta * (1 + scale * rng.normal(size=theta.size)))
+
+
+def cvxpy_cone_step(g, H, diag, mu, theta, groups, phi, varphi, gamma, m_res):
+    """The cone program (27), written in cvxpy and solved with Clarabel."""
+    import cvxpy as cp
+
+    d = cp.Variable(g.size)
+    P = 2.0 / m_res * (H + mu * np.diag(diag))
+    penalty = sum(
+        gamma * f * v * cp.norm(theta[sl] + d[sl], 2)
+        for f, v, sl in zip(phi, varphi, groups, strict=True)
+    )
+    objective = g / m_res @ d + 0.5 * cp.quad_form(d, cp.psd_wrap(P)) + penalty
+    problem = cp.Problem(cp.Minimize(objective))
+    problem.solve(solver=cp.CLARABEL)
+    return d.value
+
+
+def iteration_timings(model, data, problem, repeat: int) -> None:
+    """LM iteration, SOCP step, cone program alone, cvxpy comparison."""
+    start = perturbed(model, 1e-3)
+    nls = lpvid.fit_nls(start, data, max_iter=40, ftol=0.0, xtol=0.0)
+    lm = np.median([h["seconds"] for h in nls.history])
+    gamma = 1e-3
+    reg = lpvid.fit_l21(nls.model, data, gamma, max_outer=4)
+    socp = np.median([h["seconds"] for h in reg.history])
+    print(f"  one LM iteration (in a fit, {nls.n_iter} iterations)  : {lm * 1e3:8.3f} ms median")
+    print(f"  one SOCP step (in a fit, {reg.n_iter} steps)         : {socp * 1e3:8.3f} ms median")
+
+    # The cone program alone: cone_step = J^T J at theta + build + solve.
+    theta = nls.model.theta
+    sup = model.basis.sup_norms((24.0, 48.0))
+    mu = 1e-4
+    settings = {"gamma": gamma}
+    t_step = median_time(
+        lambda: _core.cone_step(problem, theta, sup, None, settings, mu), max(10, repeat // 10)
+    )
+    t_gn = median_time(lambda: problem.gauss_newton(theta), repeat)
+    t_cone = t_step - t_gn
+    out = _core.cone_step(problem, theta, sup, None, settings, mu)
+    v, g, h = problem.gauss_newton(theta)
+    H = h.reshape(g.size, g.size)
+    diag = np.maximum(np.diag(H), 1e-12 * np.diag(H).max())
+    n, r, l, nb = model.shape
+    groups, start_i = [], 0
+    for size in (n * n, n * r, l * n, l * r):
+        start_i += size
+        for _ in range(nb):
+            groups.append(slice(start_i, start_i + size))
+            start_i += size
+    args = (g, H, diag, mu, theta, groups, out["phi"], out["varphi"], gamma, data.n_residuals)
+    t_cvx = median_time(lambda: cvxpy_cone_step(*args), 5)
+    d_cvx = cvxpy_cone_step(*args)
+    gap = np.linalg.norm(d_cvx - out["step"]) / np.linalg.norm(d_cvx)
+    print(f"  cone program, build + solve (Rust Clarabel)  : {t_cone * 1e3:8.3f} ms median")
+    print(f"  same program in cvxpy + Clarabel (Python)    : {t_cvx * 1e3:8.3f} ms median")
+    print(f"  ratio cvxpy / core                          : {t_cvx / t_cone:8.1f} x")
+    print(f"  relative difference of the two steps         : {gap:8.1e}")
 
 
 if __name__ == "__main__":
