@@ -12,7 +12,10 @@ from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
+from lpvid.local import LocalModels, identify_lti
 from lpvid.model import LpvModel
+from lpvid.smile import smile, smile_candidates
+from lpvid.subspace import fd_subspace
 
 __version__ = "0.1.0"
 
@@ -22,11 +25,16 @@ __all__ = [
     "FrfData",
     "GroupNorms",
     "Legendre",
+    "LocalModels",
     "LpvModel",
     "Polynomial",
     "SingularModelError",
+    "fd_subspace",
     "fixed_mask",
     "free_mask",
+    "identify_lti",
     "residual",
+    "smile",
+    "smile_candidates",
     "vnls",
 ]
