@@ -67,3 +67,17 @@ def scramble(model: Ss, rng: np.random.Generator, spread: float = 1.0) -> Ss:
 def rel_err(a: np.ndarray, b: np.ndarray) -> float:
     """||a - b|| / ||b||."""
     return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def close_modes(s: float, gap_hz: float = 0.3) -> Ss:
+    """Two light modes (0.5 %, 0.6 % damping) gap_hz apart near 150-175 Hz, 2 x 2 MIMO.
+
+    Both move with s in [0, 1]; their residues point in different directions.
+    """
+    return modal_system(
+        [150.0 + 20.0 * s, 150.0 + gap_hz + 20.0 * s + 5.0 * s**2],
+        [0.005, 0.006],
+        [np.array([[1.0, 0.2], [0.3, 1.0]]), np.array([[0.5 + 0.3 * s, -0.4], [0.2, 0.7]])],
+        [np.array([[1.0, 0.0], [0.2, 0.5]]), np.array([[0.3, 1.0], [-0.6, 0.4 * (1 + s)]])],
+        np.zeros((2, 2)),
+    )

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from conftest import random_lpv
 from scipy.linalg import block_diag, expm
-from systems import gantry_like, lti_frf, modal_system, rel_err
+from systems import close_modes, gantry_like, lti_frf, modal_system, rel_err
 
 import lpvid
 from lpvid.subspace import bilinear_to_continuous, fd_subspace, max_order, reflect_unstable
@@ -44,6 +44,7 @@ CASES = {
         np.linspace(0.5, 49.0, 60),
     ),
     "ct-gantry": (None, lambda rng: gantry_like(30.0), np.linspace(40.0, 400.0, 300)),
+    "ct-close-modes": (None, lambda rng: close_modes(0.3), np.linspace(120.0, 200.0, 400)),
 }
 
 
