@@ -62,5 +62,56 @@ fn bench_evaluation(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench_evaluation);
+fn bench_steps(c: &mut Criterion) {
+    let (problem, theta) = gantry_problem();
+    let free = FreeSet::all(theta.len());
+    let gn = problem.gauss_newton(&theta, &free).expect("gn");
+    let diag = lpvid::lm::marquardt_diagonal(&gn);
+    let mu = 1e-4;
+    c.bench_function(
+        "gantry: LM iteration (step, trial V_NLS, J^T J at new point)",
+        |b| {
+            b.iter(|| {
+                let d = lpvid::lm::lm_step(&gn, &diag, mu).expect("step");
+                let trial = free.add_step(&theta, &d);
+                let v = problem.cost(&trial).expect("cost");
+                black_box((v, problem.gauss_newton(&trial, &free).expect("gn")))
+            })
+        },
+    );
+    c.bench_function("gantry: LM step solve only (Cholesky)", |b| {
+        b.iter(|| black_box(lpvid::lm::lm_step(&gn, &diag, mu)))
+    });
+    let sup = vec![1.0; 4];
+    let settings = lpvid::L21Settings::default();
+    let groups =
+        lpvid::l21::cone_groups(problem.shape(), &free, &sup, &theta, &settings).expect("groups");
+    let cone = lpvid::socp::ConeProblem {
+        gn: &gn,
+        diag: &diag,
+        theta: &theta,
+        groups: &groups,
+        gamma: 1e-3,
+        n_residuals: problem.n_residuals() as f64,
+    };
+    c.bench_function("gantry: SOCP solve only (build + Clarabel)", |b| {
+        let mut solver = lpvid::socp::ConeSolver::default();
+        b.iter(|| black_box(cone.solve(mu, &mut solver)))
+    });
+    c.bench_function(
+        "gantry: SOCP step (build + solve, trial V_NLS, J^T J at new point)",
+        |b| {
+            let mut solver = lpvid::socp::ConeSolver::default();
+            b.iter(|| {
+                let step = cone.solve(mu, &mut solver);
+                let d = step.step.expect("solved");
+                let trial = free.add_step(&theta, &d);
+                let v = problem.cost(&trial).expect("cost");
+                black_box((v, problem.gauss_newton(&trial, &free).expect("gn")))
+            })
+        },
+    );
+}
+
+criterion_group!(benches, bench_evaluation, bench_steps);
 criterion_main!(benches);

@@ -8,18 +8,26 @@
 #![warn(missing_docs)]
 
 pub mod data;
+pub mod dense;
 pub mod error;
+pub mod fit;
+pub mod l21;
 pub mod lanes;
 pub mod layout;
+pub mod lm;
 pub mod lti;
 pub mod problem;
 pub mod response;
+pub mod socp;
 
 #[cfg(feature = "python")]
 mod python;
 
 pub use data::FrfData;
 pub use error::{Error, Result};
+pub use fit::{Fit, Iteration, Monitor, Silent, StepKind, Stop};
+pub use l21::{fit_l21, l21_path, L21Settings, Weighting};
 pub use layout::{FreeSet, Group, Matrix, Shape};
+pub use lm::{levenberg_marquardt, LmSettings};
 pub use problem::{GaussNewton, Problem};
 pub use response::frequency_response;

@@ -51,7 +51,10 @@ fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem,
 
 fn real_residual(p: &Problem, theta: &[f64]) -> Vec<f64> {
     let e = p.residual(theta).unwrap();
-    e.iter().map(|v| v.re).chain(e.iter().map(|v| v.im)).collect()
+    e.iter()
+        .map(|v| v.re)
+        .chain(e.iter().map(|v| v.im))
+        .collect()
 }
 
 fn check(n: usize, r: usize, l: usize, nb: usize, discrete: bool, mask: Option<Vec<bool>>) {
@@ -71,7 +74,10 @@ fn check(n: usize, r: usize, l: usize, nb: usize, discrete: bool, mask: Option<V
             up[i] += h;
             down[i] -= h;
             let (ru, rd) = (real_residual(&p, &up), real_residual(&p, &down));
-            ru.iter().zip(&rd).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+            ru.iter()
+                .zip(&rd)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
         })
         .collect();
     let m = free.len();
@@ -87,7 +93,10 @@ fn check(n: usize, r: usize, l: usize, nb: usize, discrete: bool, mask: Option<V
         for b in 0..m {
             let h_fd: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
             let got = gn.gram[a + b * m];
-            assert!((got - h_fd).abs() <= 1e-6 * hmax, "J^T J ({a}, {b}): {got} vs {h_fd}");
+            assert!(
+                (got - h_fd).abs() <= 1e-6 * hmax,
+                "J^T J ({a}, {b}): {got} vs {h_fd}"
+            );
             assert_eq!(got, gn.gram[b + a * m]);
         }
     }
@@ -112,9 +121,10 @@ fn derivatives_lti() {
 fn derivatives_with_fixed_parameters() {
     let shape = Shape::new(3, 2, 2, 2).unwrap();
     let mut mask = vec![true; shape.len()];
-    for i in shape.block(Matrix::D, 0).start..shape.len() {
-        mask[i] = false; // all of D fixed
-    }
+    // all of D fixed
+    mask[shape.block(Matrix::D, 0).start..]
+        .iter_mut()
+        .for_each(|m| *m = false);
     mask[shape.block(Matrix::A, 2).start + 4] = false;
     check(3, 2, 2, 2, true, Some(mask));
 }

@@ -6,14 +6,17 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
+from lpvid import datasets
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
+from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.local import LocalModels, identify_lti
 from lpvid.model import LpvModel
+from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.smile import smile, smile_candidates
 from lpvid.subspace import fd_subspace
 
@@ -22,17 +25,24 @@ __version__ = "0.1.0"
 __all__ = [
     "Basis",
     "CustomBasis",
+    "FitResult",
     "FrfData",
     "GroupNorms",
+    "L21Result",
     "Legendre",
     "LocalModels",
     "LpvModel",
+    "PathResult",
     "Polynomial",
     "SingularModelError",
+    "datasets",
     "fd_subspace",
+    "fit_l21",
+    "fit_nls",
     "fixed_mask",
     "free_mask",
     "identify_lti",
+    "l21_path",
     "residual",
     "smile",
     "smile_candidates",

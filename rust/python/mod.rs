@@ -2,6 +2,7 @@
 //! wrappers. Nothing numerical happens here.
 
 mod convert;
+mod fit_py;
 mod problem_py;
 
 use pyo3::prelude::*;
@@ -22,5 +23,6 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.py().get_type::<SingularModelError>(),
     )?;
     problem_py::register(m)?;
+    fit_py::register(m)?;
     Ok(())
 }

@@ -1,0 +1,213 @@
+//! What the fitting routines share: the record of one iteration, the
+//! outcome of a fit, the damping rule, and the monitor through which a
+//! caller follows progress and stops a run.
+
+use std::time::Instant;
+
+/// Which kind of step an iteration computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepKind {
+    /// A Levenberg-Marquardt step on V_NLS.
+    Lm,
+    /// A second-order cone step of the regularised problem (method.md (27)).
+    Socp,
+}
+
+/// One row of a fit's history: one step computed, accepted or not.
+#[derive(Debug, Clone)]
+pub struct Iteration {
+    /// Step kind.
+    pub kind: StepKind,
+    /// Outer (reweighting) iteration, 0 for Levenberg-Marquardt.
+    pub outer: usize,
+    /// V_NLS after the iteration (at the new point if accepted, else at the old).
+    pub vnls: f64,
+    /// Objective after the iteration: V_NLS for LM, V_NLS / M + gamma * penalty for l2,1.
+    pub objective: f64,
+    /// Norm of the computed step.
+    pub step_norm: f64,
+    /// Damping `lambda` of method.md (18) used for the step (`lambda^2` multiplies diag J^T J).
+    pub lambda: f64,
+    /// Whether the step was taken.
+    pub accepted: bool,
+    /// Actual over predicted decrease of the objective.
+    pub gain_ratio: f64,
+    /// Status of the step's linear or cone solve.
+    pub status: String,
+    /// Iterations of the cone solver (0 for LM).
+    pub solver_iterations: u32,
+    /// Wall time of the iteration in seconds.
+    pub seconds: f64,
+}
+
+/// Why a fit stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stop {
+    /// The step became smaller than the tolerance.
+    StepSize,
+    /// The objective stopped decreasing (relative change below tolerance).
+    CostChange,
+    /// The gradient vanished.
+    Gradient,
+    /// The weights of the reweighting loop stopped changing.
+    Weights,
+    /// The groups in use and V_NLS stopped changing between reweightings.
+    Settled,
+    /// The iteration limit was reached.
+    MaxIterations,
+    /// No damping made the objective decrease.
+    Damping,
+    /// The caller asked to stop (callback or Ctrl-C).
+    Interrupted,
+    /// Nothing to optimise: no free parameter.
+    NothingFree,
+}
+
+impl Stop {
+    /// Whether the fit counts as converged.
+    pub fn converged(self) -> bool {
+        matches!(
+            self,
+            Stop::StepSize
+                | Stop::CostChange
+                | Stop::Gradient
+                | Stop::Weights
+                | Stop::Settled
+                | Stop::NothingFree
+        )
+    }
+
+    /// A sentence for users.
+    pub fn message(self) -> &'static str {
+        match self {
+            Stop::StepSize => "converged: the step is below the tolerance",
+            Stop::CostChange => {
+                "converged: the relative change of the objective is below the tolerance"
+            }
+            Stop::Gradient => "converged: the gradient vanished",
+            Stop::Weights => "converged: the reweighting weights stopped changing",
+            Stop::Settled => "converged: the groups in use and V_NLS settled",
+            Stop::MaxIterations => "stopped: iteration limit reached",
+            Stop::Damping => {
+                "stopped: no damping gives a decrease (a local minimum or a numerical limit)"
+            }
+            Stop::Interrupted => "interrupted by the caller; the best model so far is returned",
+            Stop::NothingFree => "nothing to fit: every parameter is fixed",
+        }
+    }
+}
+
+/// The outcome of a fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Final parameters (the best accepted point).
+    pub theta: Vec<f64>,
+    /// V_NLS at `theta`.
+    pub vnls: f64,
+    /// Objective at `theta`.
+    pub objective: f64,
+    /// One row per computed step.
+    pub history: Vec<Iteration>,
+    /// Why the fit stopped.
+    pub stop: Stop,
+    /// Final reweighting weights `phi` per group (l2,1 only; empty for LM).
+    pub weights: Vec<f64>,
+    /// Number of outer (reweighting) iterations (l2,1 only).
+    pub outer_iterations: usize,
+    /// Total wall time in seconds.
+    pub total_seconds: f64,
+}
+
+impl Fit {
+    /// Mean seconds per step of the given kind (NaN when there is none).
+    pub fn mean_seconds(&self, kind: StepKind) -> f64 {
+        let times: Vec<f64> = self
+            .history
+            .iter()
+            .filter(|it| it.kind == kind)
+            .map(|it| it.seconds)
+            .collect();
+        if times.is_empty() {
+            f64::NAN
+        } else {
+            times.iter().sum::<f64>() / times.len() as f64
+        }
+    }
+
+    /// Number of rejected steps.
+    pub fn rejected(&self) -> usize {
+        self.history.iter().filter(|it| !it.accepted).count()
+    }
+}
+
+/// Follows a fit: sees every iteration and may stop the run.
+pub trait Monitor {
+    /// Called after every iteration; return `false` to stop the fit.
+    fn iteration(&mut self, it: &Iteration) -> bool;
+}
+
+/// A monitor that never stops anything.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Silent;
+
+impl Monitor for Silent {
+    fn iteration(&mut self, _it: &Iteration) -> bool {
+        true
+    }
+}
+
+/// Nielsen's damping update from the gain ratio (Nielsen 1999; Madsen,
+/// Nielsen and Tingleff 2004): on a good step the damping shrinks smoothly
+/// with the gain ratio, on a bad one it grows by a doubling factor.
+#[derive(Debug, Clone, Copy)]
+pub struct Damping {
+    /// Current `mu = lambda^2`, multiplying diag(J^T J).
+    pub mu: f64,
+    nu: f64,
+}
+
+/// Largest damping tried before giving up.
+pub const MAX_DAMPING: f64 = 1e16;
+
+impl Damping {
+    /// Start from `lambda`.
+    pub fn new(lambda: f64) -> Self {
+        Damping {
+            mu: lambda * lambda,
+            nu: 2.0,
+        }
+    }
+
+    /// `lambda = sqrt(mu)`.
+    pub fn lambda(&self) -> f64 {
+        self.mu.sqrt()
+    }
+
+    /// Update after a step with gain ratio `rho` (accepted when `rho > 0`).
+    pub fn update(&mut self, rho: f64) {
+        if rho > 0.0 && rho.is_finite() {
+            let f = 1.0 - (2.0 * rho - 1.0).powi(3);
+            self.mu *= f.max(1.0 / 3.0);
+            self.mu = self.mu.max(1e-12);
+            self.nu = 2.0;
+        } else {
+            self.mu *= self.nu;
+            self.nu *= 2.0;
+        }
+    }
+
+    /// Whether the damping has grown past any use.
+    pub fn exhausted(&self) -> bool {
+        self.mu.is_nan() || self.mu >= MAX_DAMPING
+    }
+}
+
+/// Stopwatch for an iteration.
+pub(crate) fn seconds_since(t0: Instant) -> f64 {
+    t0.elapsed().as_secs_f64()
+}
+
+/// Euclidean norm.
+pub(crate) fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}

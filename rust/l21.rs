@@ -1,0 +1,459 @@
+//! Reweighted l2,1 regularisation (Algorithm 1 of the paper, method.md
+//! section 4) and the warm-started gamma path.
+//!
+//! The regularised objective uses `V_NLS / M`, `M` the number of complex
+//! residuals, so that `gamma` means the same on every data set: with the
+//! relative weights (23), every group in use costs about `gamma`, and a group
+//! is kept when it lowers `V_NLS` by more than about `gamma M`.
+
+use crate::error::{invalid, Result};
+use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
+use crate::layout::{FreeSet, Matrix, Shape};
+use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
+use crate::problem::Problem;
+use crate::socp::{ConeGroup, ConeProblem, ConeSolver};
+use std::time::Instant;
+
+/// The reweighting rule (method.md (21)-(23)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weighting {
+    /// (23) with the scale (25): `phi = 1 / (||theta_i|| ||psi_i|| / ||theta_0|| + eps)`.
+    /// Groups whose `X(0)` is zero or fixed fall back to (22).
+    Relative,
+    /// (22): `phi = 1 / (||theta_i|| ||psi_i|| + eps)`, scale `||psi_i||`.
+    Scaled,
+    /// (21): `phi = 1 / (||theta_i|| + eps)`, scale 1.
+    Plain,
+}
+
+/// Settings of [`fit_l21`].
+#[derive(Debug, Clone, Copy)]
+pub struct L21Settings {
+    /// Regularisation weight (normalised: multiplies the penalty next to `V_NLS / M`).
+    pub gamma: f64,
+    /// `eps` of the weights.
+    pub eps: f64,
+    /// The reweighting rule.
+    pub weighting: Weighting,
+    /// Inner loop stops when `||d|| <= dtheta_min (||theta_free|| + dtheta_min)`.
+    pub dtheta_min: f64,
+    /// Outer loop stops when `max_g |phi_g - phi_prev_g| / phi_prev_g <= dphi_min`.
+    pub dphi_min: f64,
+    /// Outer loop also stops when the groups in use stay the same and V_NLS
+    /// changes by at most `dvnls_min` (relative) over an outer iteration.
+    pub dvnls_min: f64,
+    /// Relative magnitude (23) above which a group counts as in use.
+    pub threshold: f64,
+    /// Inner loop also stops when an accepted step lowers the objective by
+    /// less than `ftol` times its value.
+    pub ftol: f64,
+    /// Most outer (reweighting) iterations.
+    pub max_outer: usize,
+    /// Most cone steps per outer iteration. Few steps per reweighting work
+    /// best: long inner loops mostly slide along similarity transforms.
+    pub max_inner: usize,
+    /// Initial damping `lambda`.
+    pub lambda0: f64,
+}
+
+impl Default for L21Settings {
+    fn default() -> Self {
+        L21Settings {
+            gamma: 1e-3,
+            eps: 1e-3,
+            weighting: Weighting::Relative,
+            dtheta_min: 1e-6,
+            dphi_min: 1e-3,
+            dvnls_min: 1e-3,
+            threshold: 1e-6,
+            ftol: 1e-6,
+            max_outer: 20,
+            max_inner: 10,
+            lambda0: 1e-2,
+        }
+    }
+}
+
+impl L21Settings {
+    /// Check every field.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("gamma", self.gamma),
+            ("dtheta_min", self.dtheta_min),
+            ("dphi_min", self.dphi_min),
+            ("dvnls_min", self.dvnls_min),
+            ("threshold", self.threshold),
+            ("ftol", self.ftol),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(
+                    name,
+                    format!("expected a finite number >= 0, got {v}"),
+                ));
+            }
+        }
+        for (name, v) in [("eps", self.eps), ("lambda0", self.lambda0)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(
+                    name,
+                    format!("expected a finite number > 0, got {v}"),
+                ));
+            }
+        }
+        if self.max_outer == 0 || self.max_inner == 0 {
+            return Err(invalid("max_outer", "iteration limits must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// A penalised group with what its weights need.
+#[derive(Debug, Clone)]
+struct GroupSpec {
+    entries: Vec<(usize, Option<usize>)>,
+    constant: std::ops::Range<usize>,
+    constant_fixed: bool,
+    sup: f64,
+}
+
+fn group_specs(shape: &Shape, free: &FreeSet, sup_norms: &[f64]) -> Result<Vec<GroupSpec>> {
+    if sup_norms.len() != shape.nb {
+        return Err(invalid(
+            "sup_norms",
+            format!(
+                "expected {} values (one per basis function), got {}",
+                shape.nb,
+                sup_norms.len()
+            ),
+        ));
+    }
+    if sup_norms.iter().any(|s| !(s.is_finite() && *s >= 0.0)) {
+        return Err(invalid("sup_norms", "must be finite and >= 0"));
+    }
+    Ok(shape
+        .groups()
+        .into_iter()
+        .map(|g| {
+            let constant = shape.block(g.matrix, 0);
+            GroupSpec {
+                entries: g.range.clone().map(|i| (i, free.position(i))).collect(),
+                constant_fixed: constant.clone().all(|i| free.position(i).is_none()),
+                constant,
+                sup: sup_norms[g.basis - 1],
+            }
+        })
+        .collect())
+}
+
+/// The penalised groups of a problem with their weights `phi` and scales
+/// `varphi` at `theta` (what one cone step needs).
+pub fn cone_groups(
+    shape: &Shape,
+    free: &FreeSet,
+    sup_norms: &[f64],
+    theta: &[f64],
+    settings: &L21Settings,
+) -> Result<Vec<ConeGroup>> {
+    Ok(weigh(
+        &group_specs(shape, free, sup_norms)?,
+        theta,
+        settings,
+    ))
+}
+
+/// Weights `phi` and scales `varphi` of every group at `theta`.
+fn weigh(specs: &[GroupSpec], theta: &[f64], s: &L21Settings) -> Vec<ConeGroup> {
+    specs
+        .iter()
+        .map(|g| {
+            let norm_i = g
+                .entries
+                .iter()
+                .map(|&(i, _)| theta[i] * theta[i])
+                .sum::<f64>()
+                .sqrt();
+            let norm_0 = norm(&theta[g.constant.clone()]);
+            let relative = s.weighting == Weighting::Relative && norm_0 > 0.0 && !g.constant_fixed;
+            let (phi, varphi) = if relative {
+                (1.0 / (norm_i * g.sup / norm_0 + s.eps), g.sup / norm_0)
+            } else if s.weighting == Weighting::Plain {
+                (1.0 / (norm_i + s.eps), 1.0)
+            } else {
+                (1.0 / (norm_i * g.sup + s.eps), g.sup)
+            };
+            ConeGroup {
+                entries: g.entries.clone(),
+                phi,
+                varphi,
+            }
+        })
+        .collect()
+}
+
+/// Algorithm 1: reweighted l2,1-regularised fit from `theta0`.
+///
+/// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
+/// `gamma = 0` the problem is plain nonlinear least squares and the fit is
+/// Levenberg-Marquardt (the cone steps would reproduce its steps).
+pub fn fit_l21(
+    problem: &Problem,
+    theta0: &[f64],
+    free: &FreeSet,
+    sup_norms: &[f64],
+    settings: &L21Settings,
+    monitor: &mut dyn Monitor,
+) -> Result<Fit> {
+    settings.validate()?;
+    problem.shape().check_theta(theta0)?;
+    let specs = group_specs(problem.shape(), free, sup_norms)?;
+    if settings.gamma == 0.0 {
+        let lm = LmSettings {
+            max_iter: settings.max_inner * settings.max_outer,
+            xtol: settings.dtheta_min,
+            ftol: settings.ftol,
+            gtol: 0.0,
+            lambda0: settings.lambda0,
+        };
+        let mut fit = levenberg_marquardt(problem, theta0, free, &lm, monitor)?;
+        fit.objective = fit.vnls / problem.n_residuals() as f64;
+        fit.weights = weigh(&specs, &fit.theta, settings)
+            .iter()
+            .map(|g| g.phi)
+            .collect();
+        return Ok(fit);
+    }
+    let start = Instant::now();
+    let m_res = problem.n_residuals() as f64;
+    let mut theta = theta0.to_vec();
+    let mut gn = problem.gauss_newton(&theta, free)?;
+    let mut diag = marquardt_diagonal(&gn);
+    let mut history = Vec::new();
+    let mut prev_phi: Option<Vec<f64>> = None;
+    let mut prev_state: Option<(Vec<bool>, f64)> = None;
+    let mut stop = Stop::MaxIterations;
+    let mut groups = weigh(&specs, &theta, settings);
+    let mut outer = 0;
+    let mut cone_solver = ConeSolver::default();
+    'outer: while outer < settings.max_outer {
+        groups = weigh(&specs, &theta, settings);
+        let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();
+        if let Some(prev) = &prev_phi {
+            let change = phi
+                .iter()
+                .zip(prev)
+                .map(|(a, b)| (a - b).abs() / b.abs())
+                .fold(0.0f64, f64::max);
+            if change <= settings.dphi_min {
+                stop = Stop::Weights;
+                break;
+            }
+        }
+        // Once the groups in use and the fit have settled, further outer
+        // iterations only slide along similarity transforms that trade the
+        // size of the penalised groups for that of the constant parts.
+        let support: Vec<bool> = groups
+            .iter()
+            .map(|g| g.varphi * g.norm_at(&theta) > settings.threshold)
+            .collect();
+        if let Some((prev_support, prev_v)) = &prev_state {
+            if *prev_support == support && (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v {
+                stop = Stop::Settled;
+                break;
+            }
+        }
+        prev_state = Some((support, gn.vnls));
+        outer += 1;
+        let mut damping = Damping::new(settings.lambda0);
+        if free.is_empty() {
+            stop = Stop::NothingFree;
+            break;
+        }
+        for _ in 0..settings.max_inner {
+            let t0 = Instant::now();
+            let cone = ConeProblem {
+                gn: &gn,
+                diag: &diag,
+                theta: &theta,
+                groups: &groups,
+                gamma: settings.gamma,
+                n_residuals: m_res,
+            };
+            let objective = gn.vnls / m_res + cone.penalty(None);
+            let lambda = damping.lambda();
+            let solved = cone.solve(damping.mu, &mut cone_solver);
+            let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
+            let mut new_theta = None;
+            let mut new_objective = objective;
+            if let Some(d) = &solved.step {
+                step_norm = norm(d);
+                let trial = free.add_step(&theta, d);
+                let predicted = objective
+                    - (gn.vnls - predicted_decrease(&gn, d)) / m_res
+                    - cone.penalty(Some(d));
+                if let Ok(v) = problem.cost(&trial) {
+                    let f_trial = v / m_res + cone.penalty(Some(d));
+                    rho = (objective - f_trial) / predicted;
+                    if f_trial.is_finite() && f_trial < objective && predicted > 0.0 {
+                        accepted = true;
+                        new_objective = f_trial;
+                        new_theta = Some(trial);
+                    }
+                }
+            }
+            damping.update(if accepted { rho } else { -1.0 });
+            let theta_norm = norm(&free.gather(&theta));
+            if let Some(trial) = new_theta {
+                gn = problem.gauss_newton(&trial, free)?;
+                diag = marquardt_diagonal(&gn);
+                theta = trial;
+            }
+            history.push(Iteration {
+                kind: StepKind::Socp,
+                outer,
+                vnls: gn.vnls,
+                objective: new_objective,
+                step_norm,
+                lambda,
+                accepted,
+                gain_ratio: rho,
+                status: solved.status.clone(),
+                solver_iterations: solved.iterations,
+                seconds: seconds_since(t0),
+            });
+            if !monitor.iteration(history.last().expect("just pushed")) {
+                stop = Stop::Interrupted;
+                break 'outer;
+            }
+            let small = step_norm <= settings.dtheta_min * (theta_norm + settings.dtheta_min);
+            if small || (accepted && objective - new_objective <= settings.ftol * objective.abs()) {
+                break;
+            }
+            if !accepted && damping.exhausted() {
+                // No decrease at any damping: this point is as good as it gets
+                // for these weights.
+                break;
+            }
+        }
+        prev_phi = Some(phi);
+    }
+    let objective = gn.vnls / m_res
+        + settings.gamma
+            * groups
+                .iter()
+                .map(|g| g.phi * g.varphi * g.norm_at(&theta))
+                .sum::<f64>();
+    Ok(Fit {
+        weights: groups.iter().map(|g| g.phi).collect(),
+        vnls: gn.vnls,
+        objective,
+        theta,
+        history,
+        stop,
+        outer_iterations: outer,
+        total_seconds: seconds_since(start),
+    })
+}
+
+/// What [`single_cone_step`] reports.
+#[derive(Debug, Clone)]
+pub struct ConeStepReport {
+    /// The step over the free parameters, when the solve succeeded.
+    pub step: Option<Vec<f64>>,
+    /// The subproblem's objective at the step,
+    /// `(g/M)^T d + 1/2 d^T (2/M)(J^T J + mu diag J^T J) d + gamma sum phi varphi ||theta_g + d_g||`.
+    pub objective: f64,
+    /// The cone solver's status.
+    pub status: String,
+    /// The groups with their weights.
+    pub groups: Vec<ConeGroup>,
+}
+
+/// One cone step (27) at `theta` with damping `mu`, for inspection and tests.
+pub fn single_cone_step(
+    problem: &Problem,
+    theta: &[f64],
+    free: &FreeSet,
+    sup_norms: &[f64],
+    settings: &L21Settings,
+    mu: f64,
+) -> Result<ConeStepReport> {
+    settings.validate()?;
+    problem.shape().check_theta(theta)?;
+    if !(mu.is_finite() && mu >= 0.0) {
+        return Err(invalid(
+            "mu",
+            format!("expected a finite number >= 0, got {mu}"),
+        ));
+    }
+    let gn = problem.gauss_newton(theta, free)?;
+    let diag = marquardt_diagonal(&gn);
+    let groups = cone_groups(problem.shape(), free, sup_norms, theta, settings)?;
+    let m_res = problem.n_residuals() as f64;
+    let cone = ConeProblem {
+        gn: &gn,
+        diag: &diag,
+        theta,
+        groups: &groups,
+        gamma: settings.gamma,
+        n_residuals: m_res,
+    };
+    let solved = cone.solve(mu, &mut ConeSolver::default());
+    let objective = solved.step.as_ref().map_or(f64::NAN, |d| {
+        let m = gn.dim();
+        let mut quad = 0.0;
+        for j in 0..m {
+            for i in 0..m {
+                let h = gn.gram[i + j * m] + if i == j { mu * diag[i] } else { 0.0 };
+                quad += d[i] * h * d[j];
+            }
+        }
+        let lin: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
+        (lin + quad) / m_res + cone.penalty(Some(d))
+    });
+    Ok(ConeStepReport {
+        step: solved.step,
+        objective,
+        status: solved.status,
+        groups,
+    })
+}
+
+/// A warm-started sweep over `gammas`, from the largest to the smallest
+/// (section 5.3 of the paper): each fit starts from the previous result.
+/// Returns the fits in that order.
+pub fn l21_path(
+    problem: &Problem,
+    theta0: &[f64],
+    free: &FreeSet,
+    sup_norms: &[f64],
+    gammas: &[f64],
+    settings: &L21Settings,
+    monitor: &mut dyn Monitor,
+) -> Result<Vec<(f64, Fit)>> {
+    if gammas.is_empty() {
+        return Err(invalid("gammas", "needs at least one value"));
+    }
+    if gammas.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
+        return Err(invalid("gammas", "every gamma must be finite and >= 0"));
+    }
+    let mut order = gammas.to_vec();
+    order.sort_by(|a, b| b.total_cmp(a));
+    let mut theta = theta0.to_vec();
+    let mut out = Vec::with_capacity(order.len());
+    for gamma in order {
+        let s = L21Settings { gamma, ..*settings };
+        let fit = fit_l21(problem, &theta, free, sup_norms, &s, monitor)?;
+        theta = fit.theta.clone();
+        let stop = fit.stop;
+        out.push((gamma, fit));
+        if stop == Stop::Interrupted {
+            break;
+        }
+    }
+    Ok(out)
+}
+
+/// The matrix and basis index of every group, in the order of the weights.
+pub fn group_labels(shape: &Shape) -> Vec<(Matrix, usize)> {
+    shape.groups().iter().map(|g| (g.matrix, g.basis)).collect()
+}

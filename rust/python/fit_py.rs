@@ -1,0 +1,335 @@
+//! Fitting routines for Python: Levenberg-Marquardt, the reweighted l2,1
+//! fit and the gamma path. The GIL is released during the fit and taken
+//! back once per iteration to call the progress callback and to notice
+//! Ctrl-C.
+
+use super::convert::{bool_vec, real_vec, to_py};
+use super::problem_py::PyProblem;
+use crate::fit::{Fit, Iteration, Monitor, StepKind, Stop};
+use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
+use crate::layout::FreeSet;
+use crate::lm::{levenberg_marquardt, LmSettings};
+use numpy::PyReadonlyArray1;
+use pyo3::conversion::FromPyObjectOwned;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyList};
+
+/// Calls the Python callback with one dict per iteration; stops the fit when
+/// the callback returns `False`, raises, or Ctrl-C arrives.
+struct PyMonitor {
+    callback: Option<Py<PyAny>>,
+    error: Option<PyErr>,
+}
+
+impl Monitor for PyMonitor {
+    fn iteration(&mut self, it: &Iteration) -> bool {
+        Python::attach(|py| {
+            if py.check_signals().is_err() {
+                return false;
+            }
+            let Some(cb) = &self.callback else {
+                return true;
+            };
+            let result = iteration_dict(py, it).and_then(|row| cb.bind(py).call1((row,)));
+            match result {
+                // Only an explicit False stops the fit.
+                Ok(ret) => !ret.is_instance_of::<PyBool>() || ret.is_truthy().unwrap_or(true),
+                // Ctrl-C while the callback ran: stop like Ctrl-C anywhere else.
+                Err(e) if e.is_instance_of::<PyKeyboardInterrupt>(py) => false,
+                Err(e) => {
+                    self.error = Some(e);
+                    false
+                }
+            }
+        })
+    }
+}
+
+fn iteration_dict<'py>(py: Python<'py>, it: &Iteration) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let kind = match it.kind {
+        StepKind::Lm => "lm",
+        StepKind::Socp => "socp",
+    };
+    d.set_item("kind", kind)?;
+    d.set_item("outer", it.outer)?;
+    d.set_item("vnls", it.vnls)?;
+    d.set_item("objective", it.objective)?;
+    d.set_item("step_norm", it.step_norm)?;
+    d.set_item("lambda", it.lambda)?;
+    d.set_item("accepted", it.accepted)?;
+    d.set_item("gain_ratio", it.gain_ratio)?;
+    d.set_item("status", &it.status)?;
+    d.set_item("solver_iterations", it.solver_iterations)?;
+    d.set_item("seconds", it.seconds)?;
+    Ok(d)
+}
+
+fn stop_code(stop: Stop) -> &'static str {
+    match stop {
+        Stop::StepSize => "step_size",
+        Stop::CostChange => "cost_change",
+        Stop::Gradient => "gradient",
+        Stop::Weights => "weights",
+        Stop::Settled => "settled",
+        Stop::MaxIterations => "max_iterations",
+        Stop::Damping => "damping",
+        Stop::Interrupted => "interrupted",
+        Stop::NothingFree => "nothing_free",
+    }
+}
+
+fn fit_dict<'py>(py: Python<'py>, fit: Fit) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let rows = PyList::empty(py);
+    for it in &fit.history {
+        rows.append(iteration_dict(py, it)?)?;
+    }
+    d.set_item("vnls", fit.vnls)?;
+    d.set_item("objective", fit.objective)?;
+    d.set_item("stop", stop_code(fit.stop))?;
+    d.set_item("message", fit.stop.message())?;
+    d.set_item("converged", fit.stop.converged())?;
+    d.set_item("interrupted", fit.stop == Stop::Interrupted)?;
+    d.set_item("outer_iterations", fit.outer_iterations)?;
+    d.set_item("n_rejected", fit.rejected())?;
+    d.set_item("lm_iter_s", fit.mean_seconds(StepKind::Lm))?;
+    d.set_item("socp_iter_s", fit.mean_seconds(StepKind::Socp))?;
+    d.set_item("total_s", fit.total_seconds)?;
+    d.set_item("history", rows)?;
+    d.set_item("weights", to_py(py, fit.weights))?;
+    d.set_item("theta", to_py(py, fit.theta))?;
+    Ok(d)
+}
+
+fn free_set(problem: &PyProblem, free: Option<PyReadonlyArray1<'_, bool>>) -> PyResult<FreeSet> {
+    let mask = free.as_ref().map(bool_vec);
+    Ok(FreeSet::for_shape(problem.inner.shape(), mask.as_deref())?)
+}
+
+fn weighting(name: &str) -> PyResult<Weighting> {
+    match name {
+        "relative" => Ok(Weighting::Relative),
+        "scaled" => Ok(Weighting::Scaled),
+        "plain" => Ok(Weighting::Plain),
+        other => Err(PyValueError::new_err(format!(
+            "weights: expected 'relative', 'scaled' or 'plain', got {other:?}"
+        ))),
+    }
+}
+
+/// Read an optional setting, keeping `default` when absent.
+fn setting<'py, T: FromPyObjectOwned<'py>>(
+    d: &Bound<'py, PyDict>,
+    key: &str,
+    default: T,
+) -> PyResult<T> {
+    match d.get_item(key)? {
+        Some(v) => v
+            .extract()
+            .map_err(|_| PyValueError::new_err(format!("{key}: has the wrong type"))),
+        None => Ok(default),
+    }
+}
+
+fn check_keys(d: &Bound<'_, PyDict>, known: &[&str]) -> PyResult<()> {
+    for key in d.keys() {
+        let key: String = key.extract()?;
+        if !known.contains(&key.as_str()) {
+            return Err(PyValueError::new_err(format!("unknown setting {key:?}")));
+        }
+    }
+    Ok(())
+}
+
+fn lm_settings(d: &Bound<'_, PyDict>) -> PyResult<LmSettings> {
+    check_keys(d, &["max_iter", "xtol", "ftol", "gtol", "lambda0"])?;
+    let base = LmSettings::default();
+    let s = LmSettings {
+        max_iter: setting(d, "max_iter", base.max_iter)?,
+        xtol: setting(d, "xtol", base.xtol)?,
+        ftol: setting(d, "ftol", base.ftol)?,
+        gtol: setting(d, "gtol", base.gtol)?,
+        lambda0: setting(d, "lambda0", base.lambda0)?,
+    };
+    s.validate()?;
+    Ok(s)
+}
+
+fn l21_settings(d: &Bound<'_, PyDict>) -> PyResult<L21Settings> {
+    check_keys(
+        d,
+        &[
+            "gamma",
+            "eps",
+            "weights",
+            "dtheta_min",
+            "dphi_min",
+            "dvnls_min",
+            "threshold",
+            "ftol",
+            "max_outer",
+            "max_inner",
+            "lambda0",
+        ],
+    )?;
+    let base = L21Settings::default();
+    let name: String = setting(d, "weights", "relative".to_string())?;
+    let s = L21Settings {
+        gamma: setting(d, "gamma", base.gamma)?,
+        eps: setting(d, "eps", base.eps)?,
+        weighting: weighting(&name)?,
+        dtheta_min: setting(d, "dtheta_min", base.dtheta_min)?,
+        dphi_min: setting(d, "dphi_min", base.dphi_min)?,
+        dvnls_min: setting(d, "dvnls_min", base.dvnls_min)?,
+        threshold: setting(d, "threshold", base.threshold)?,
+        ftol: setting(d, "ftol", base.ftol)?,
+        max_outer: setting(d, "max_outer", base.max_outer)?,
+        max_inner: setting(d, "max_inner", base.max_inner)?,
+        lambda0: setting(d, "lambda0", base.lambda0)?,
+    };
+    s.validate()?;
+    Ok(s)
+}
+
+/// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`. Returns a dict.
+#[pyfunction]
+#[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None))]
+fn fit_nls_py<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    theta: PyReadonlyArray1<'py, f64>,
+    free: Option<PyReadonlyArray1<'py, bool>>,
+    settings: &Bound<'py, PyDict>,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let theta = real_vec(&theta);
+    let free = free_set(problem, free)?;
+    let settings = lm_settings(settings)?;
+    let mut monitor = PyMonitor {
+        callback,
+        error: None,
+    };
+    let fit = py.detach(|| {
+        problem.inner.shape().check_theta(&theta)?;
+        levenberg_marquardt(&problem.inner, &theta, &free, &settings, &mut monitor)
+    })?;
+    if let Some(e) = monitor.error {
+        return Err(e);
+    }
+    fit_dict(py, fit)
+}
+
+/// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`. Returns a dict.
+#[pyfunction]
+#[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None))]
+fn fit_l21_py<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    theta: PyReadonlyArray1<'py, f64>,
+    sup_norms: PyReadonlyArray1<'py, f64>,
+    free: Option<PyReadonlyArray1<'py, bool>>,
+    settings: &Bound<'py, PyDict>,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let theta = real_vec(&theta);
+    let sup = real_vec(&sup_norms);
+    let free = free_set(problem, free)?;
+    let settings = l21_settings(settings)?;
+    let mut monitor = PyMonitor {
+        callback,
+        error: None,
+    };
+    let fit =
+        py.detach(|| fit_l21(&problem.inner, &theta, &free, &sup, &settings, &mut monitor))?;
+    if let Some(e) = monitor.error {
+        return Err(e);
+    }
+    fit_dict(py, fit)
+}
+
+/// Warm-started gamma path; returns a list of (gamma, dict), largest gamma first.
+#[pyfunction]
+#[pyo3(name = "l21_path", signature = (problem, theta, sup_norms, gammas, free, settings, callback=None))]
+#[allow(clippy::too_many_arguments)]
+fn l21_path_py<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    theta: PyReadonlyArray1<'py, f64>,
+    sup_norms: PyReadonlyArray1<'py, f64>,
+    gammas: PyReadonlyArray1<'py, f64>,
+    free: Option<PyReadonlyArray1<'py, bool>>,
+    settings: &Bound<'py, PyDict>,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyList>> {
+    let theta = real_vec(&theta);
+    let sup = real_vec(&sup_norms);
+    let gammas = real_vec(&gammas);
+    let free = free_set(problem, free)?;
+    let settings = l21_settings(settings)?;
+    let mut monitor = PyMonitor {
+        callback,
+        error: None,
+    };
+    let fits = py.detach(|| {
+        l21_path(
+            &problem.inner,
+            &theta,
+            &free,
+            &sup,
+            &gammas,
+            &settings,
+            &mut monitor,
+        )
+    })?;
+    if let Some(e) = monitor.error {
+        return Err(e);
+    }
+    let out = PyList::empty(py);
+    for (gamma, fit) in fits {
+        out.append((gamma, fit_dict(py, fit)?))?;
+    }
+    Ok(out)
+}
+
+/// One cone step at `theta` with damping `mu` (for tests and inspection):
+/// a dict with `step` (free parameters, or None), `objective`, `status`,
+/// `phi` and `varphi` per group.
+#[pyfunction]
+#[pyo3(name = "cone_step", signature = (problem, theta, sup_norms, free, settings, mu))]
+fn cone_step_py<'py>(
+    py: Python<'py>,
+    problem: &PyProblem,
+    theta: PyReadonlyArray1<'py, f64>,
+    sup_norms: PyReadonlyArray1<'py, f64>,
+    free: Option<PyReadonlyArray1<'py, bool>>,
+    settings: &Bound<'py, PyDict>,
+    mu: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let theta = real_vec(&theta);
+    let sup = real_vec(&sup_norms);
+    let free = free_set(problem, free)?;
+    let settings = l21_settings(settings)?;
+    let report =
+        py.detach(|| single_cone_step(&problem.inner, &theta, &free, &sup, &settings, mu))?;
+    let groups = &report.groups;
+    let d = PyDict::new(py);
+    d.set_item("step", report.step.map(|s| to_py(py, s)))?;
+    d.set_item("objective", report.objective)?;
+    d.set_item("status", report.status)?;
+    d.set_item("phi", to_py(py, groups.iter().map(|g| g.phi).collect()))?;
+    d.set_item(
+        "varphi",
+        to_py(py, groups.iter().map(|g| g.varphi).collect()),
+    )?;
+    Ok(d)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(cone_step_py, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_nls_py, m)?)?;
+    m.add_function(wrap_pyfunction!(fit_l21_py, m)?)?;
+    m.add_function(wrap_pyfunction!(l21_path_py, m)?)?;
+    Ok(())
+}
