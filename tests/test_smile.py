@@ -332,3 +332,36 @@ def test_bad_input_names_the_argument(rng):
     with pytest.raises(ValueError, match="basis: the basis functions are linearly dependent"):
         twice = lpvid.CustomBasis([lambda p: p, lambda p: 2 * p])
         lpvid.smile(locs, GANTRY_P, twice)
+
+
+# ------------------------------------------------------------------ the chain
+def noisy_gantry(points, rng):
+    G = true_gantry_frf(points)
+    sigma = 0.01 * np.abs(G)
+    noise = sigma * (rng.normal(size=G.shape) + 1j * rng.normal(size=G.shape)) / np.sqrt(2)
+    return lpvid.FrfData(points, GANTRY_FREQS, G + noise, sigma)
+
+
+def test_identify_lti_smile_fit_nls_reaches_the_noise_floor(rng):
+    """Noisy gantry-like data (1 % noise, known sigma, 5 points x 300 lines x 2 outputs).
+
+    Measured over four seeds: local models at V/floor 0.93-1.05 (subspace
+    estimates alone 0.99-1.22); the SMILE model (auto: a modal form) at
+    0.97-1.01, which fit_nls cannot lower (one step: with N - 1 polynomial
+    terms SMILE is already the minimum); on validation data at the four
+    midpoints V/floor 1.00-1.08 and relative errors to the true system of
+    3e-3 to 5e-3. The other forms on the same validation data: observability
+    1.13-1.60, pairwise 1.26-1.47, controllability 13-79.
+    """
+    data = noisy_gantry(GANTRY_P, rng)
+    loc = lpvid.identify_lti(data, 6)
+    assert np.all(np.abs(loc.vnls / loc.noise_floor - 1) < 0.2)
+    start = lpvid.smile(loc, basis=GANTRY_BASIS)
+    fit = lpvid.fit_nls(start, data)
+    assert abs(fit.vnls / data.n_residuals - 1) < 0.2
+    assert fit.vnls <= lpvid.vnls(start, data) * (1 + 1e-9)
+    validation = noisy_gantry(GANTRY_MID, rng)
+    assert lpvid.vnls(fit.model, validation) < 1.3 * validation.n_residuals
+    G_mid = true_gantry_frf(GANTRY_MID)
+    mid = fit.model.frf(GANTRY_FREQS, GANTRY_MID)
+    assert max(rel_err(mid[k], G_mid[k]) for k in range(4)) < 0.01

@@ -199,3 +199,57 @@ def test_identify_lti_checks_its_arguments(rng):
     few = lpvid.FrfData([1.0], data.freqs_hz[:5], data.G[:1, :5])
     with pytest.raises(ValueError, match="order: 6 exceeds what the data support"):
         lpvid.identify_lti(few, 6)
+
+
+# ------------------------------------------------------------------ refinement
+def noisy(G, rng, rel=0.01):
+    sigma = rel * np.abs(G) + 1e-12
+    return G + sigma * (rng.normal(size=G.shape) + 1j * rng.normal(size=G.shape)) / np.sqrt(
+        2
+    ), sigma
+
+
+@pytest.mark.parametrize("Ts", [None, 1e-3])
+@pytest.mark.parametrize("strictly_proper", [False, True])
+def test_refined_mimo_models_reach_the_noise_floor(rng, Ts, strictly_proper):
+    """1 % noise with known sigma on a 3 x 2 fifth-order system, 120 lines, two points."""
+    f = np.linspace(5.0, 400.0, 120)
+    systems = []
+    for _ in range(2):
+        A, B, C, D = mimo_ct(rng)
+        true = (A, B, C, 0 * D if strictly_proper else D)
+        systems.append(true if Ts is None else c2d(true, Ts))
+    G = np.array([lti_frf(s, z_of(f, Ts)) for s in systems])
+    Gm, sigma = noisy(G, rng)
+    data = lpvid.FrfData([0.0, 1.0], f, Gm, sigma, Ts=Ts)
+    loc = lpvid.identify_lti(data, 5, strictly_proper=strictly_proper)
+    ratio = loc.vnls / loc.noise_floor
+    assert np.all(np.abs(ratio - 1) < 0.2), ratio
+    assert loc.converged.all() and not loc.unstable.any()
+    for q, m in enumerate(loc):
+        assert lpvid.vnls(m, data.subset([q])) <= lpvid.vnls(loc.initial[q], data.subset([q]))
+        if strictly_proper:
+            assert np.all(m.D == 0)
+        # As accurate as the data allow: the error to the true FRF is below the noise.
+        assert rel_err(m.frf(f, data.p[q])[0], G[q]) < 0.01
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_pole_below_the_band_is_found_from_one_of_the_starts(seed):
+    """The built-in positioning stage: SISO, D = 0, a real pole at 2.8 Hz below the 3-50 Hz band.
+
+    The subspace step places that pole near -700 rad/s; refined from the balanced
+    estimate alone it ran off through infinity (unstable models at V/floor up
+    to 1.45). Among the several starts one settles at a stable pole near the
+    lower band edge (where exactly, the data hardly say: -8 rad/s instead of
+    the true -18 fits as well).
+    """
+    ds = lpvid.datasets.positioning_stage(seed=seed)
+    loc = lpvid.identify_lti(ds.identification, ds.order, strictly_proper=True)
+    assert not loc.unstable.any()
+    assert np.all(np.abs(loc.vnls / loc.noise_floor - 1) < 0.2), loc.vnls / loc.noise_floor
+    for q, m in enumerate(loc):
+        assert np.all(m.D == 0)
+        assert m.info["n_rows"] in (5, 8, 12) and isinstance(m.info["balanced_start"], bool)
+        slow = np.min(np.abs(m.poles(ds.identification.p[q])))
+        assert slow < 2 * np.pi * 5.0  # the subspace step had it near 110 Hz

@@ -149,10 +149,13 @@ def identify_lti(
 ) -> LocalModels:
     """Identify one LTI state-space model per scheduling point from its FRF.
 
-    Each point gets a frequency-domain subspace estimate weighted by sigma
-    (:func:`lpvid.subspace.fd_subspace`; unstable poles mirrored into the
-    stable region when ``stable``), balanced when stable, then refined by
-    Levenberg-Marquardt on that point's V_NLS (:func:`lpvid.fit_nls`).
+    Each point gets frequency-domain subspace estimates weighted by sigma
+    (:func:`lpvid.subspace.fd_subspace` with 3n, 2n and n + 1 block rows;
+    unstable poles mirrored into the stable region when ``stable``), each
+    as found and balanced; every one is refined by Levenberg-Marquardt on
+    that point's V_NLS (:func:`lpvid.fit_nls`) and the best refined model is
+    kept: the lowest V_NLS among the stable ones when ``stable`` (among all
+    when none is stable), else the lowest V_NLS.
 
     Parameters
     ----------
@@ -169,7 +172,8 @@ def identify_lti(
     refine : bool
         Run the Levenberg-Marquardt refinement (default True).
     n_rows : int, optional
-        Block rows of the subspace step (see :func:`~lpvid.subspace.fd_subspace`).
+        Block rows of the subspace step (see :func:`~lpvid.subspace.fd_subspace`);
+        default: try 3n, 2n and n + 1.
     max_iter : int
         Most Levenberg-Marquardt steps per point.
 
@@ -177,7 +181,9 @@ def identify_lti(
     -------
     LocalModels
         The models with per-point V_NLS, noise floor (``F l r``), unstable
-        flags, the subspace estimates (``.initial``) and ``p``.
+        flags, the subspace estimates the kept models started from
+        (``.initial``) and ``p``. Each model's ``info`` says which start it
+        came from (``n_rows``, ``balanced_start``) and how many steps it took.
 
     Raises
     ------
@@ -197,53 +203,81 @@ def identify_lti(
             f"{r} inputs allow at most order {limit})"
         )
     max_iter = positive_int(max_iter, "max_iter")
+    rows = _row_choices(n, F, r, n_rows)
     basis = Polynomial(0, n_params=data.n_params)
     fixed = {"D": True} if strictly_proper else None
     models, initial, costs, conv = [], [], [], []
     for q in range(data.n_points):
-        A, B, C, D = fd_subspace(
-            data.freqs_hz,
-            data.G[q],
-            n,
-            data.sigma[q],
-            data.Ts,
-            n_rows=n_rows,
-            stable=stable,
-            strictly_proper=strictly_proper,
-        )
-        (A, B, C, D), _ = _balanced(A, B, C, D, data.Ts)
-        start = LpvModel(A, B, C, D, basis=basis, Ts=data.Ts, info={"method": "fd_subspace"})
-        initial.append(start)
         point = data.subset([q])
-        model, ok = start, True
-        if refine:
-            model, ok = _refine(start, point, fixed, max_iter)
+        best = None
+        for start in _starts(point, n, rows, basis, stable, strictly_proper):
+            model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
+            # Prefer stable models when asked, then the lowest V_NLS.
+            key = (stable and not is_stable(model), vnls(model, point))
+            if best is None or key < best[0]:
+                best = (key, model, ok, start)
+        assert best is not None
+        (_, cost), model, ok, start = best
         models.append(model)
-        costs.append(vnls(model, point))
+        costs.append(cost)
         conv.append(ok)
+        initial.append(start)
     floor = np.full(data.n_points, F * l * r)
     return LocalModels(models, data.p, data.freqs_hz, costs, floor, conv, initial)
 
 
-def _balanced(
-    A: NDArray[np.float64],
-    B: NDArray[np.float64],
-    C: NDArray[np.float64],
-    D: NDArray[np.float64],
-    Ts: float | None,
-) -> tuple[tuple[NDArray[np.float64], ...], bool]:
-    out, done = balance([(A, B, C, D)], Ts)
-    return out[0], done
+def _row_choices(n: int, n_lines: int, n_inputs: int, n_rows: int | None) -> list[int | None]:
+    """Block-row counts to try: the one given, else 3n, 2n and n + 1 where the data allow."""
+    if n_rows is not None:
+        return [n_rows]
+    q_max = (2 * n_lines * n_inputs - n) // n_inputs
+    return sorted({min(k, q_max) for k in (3 * n, 2 * n, n + 1) if n + 1 <= min(k, q_max)})
+
+
+def _starts(
+    point: FrfData,
+    n: int,
+    rows: list[int | None],
+    basis: Polynomial,
+    stable: bool,
+    strictly_proper: bool,
+) -> list[LpvModel]:
+    """Subspace estimates of one point, each as found and (when stable) balanced.
+
+    The refinement is cheap and its outcome depends on the start (a pole
+    outside the band can run off to infinity from one start and settle from
+    another), so a few starts are refined and the best result kept.
+    """
+    out = []
+    for q in rows:
+        A, B, C, D = fd_subspace(
+            point.freqs_hz,
+            point.G[0],
+            n,
+            point.sigma[0],
+            point.Ts,
+            n_rows=q,
+            stable=stable,
+            strictly_proper=strictly_proper,
+        )
+        info = {"method": "fd_subspace", "n_rows": q, "balanced": False}
+        out.append(LpvModel(A, B, C, D, basis=basis, Ts=point.Ts, info=info))
+        bal, done = balance([(A, B, C, D)], point.Ts)
+        if done:
+            info = {**info, "balanced": True}
+            out.append(LpvModel(*bal[0], basis=basis, Ts=point.Ts, info=info))
+    return out
 
 
 def _refine(start: LpvModel, data: FrfData, fixed: Any, max_iter: int) -> tuple[LpvModel, bool]:
     from lpvid.fit import fit_nls
 
     result = fit_nls(start, data, fixed, max_iter=max_iter)
-    model = LpvModel(
-        *result.model.matrices().values(),
-        basis=start.basis,
-        Ts=start.Ts,
-        info={"method": "fd_subspace + fit_nls", "n_iter": int(result.n_iter)},
-    )
+    info = {
+        "method": "fd_subspace + fit_nls",
+        "n_rows": start.info["n_rows"],
+        "balanced_start": start.info["balanced"],
+        "n_iter": int(result.n_iter),
+    }
+    model = LpvModel(*result.model.matrices().values(), basis=start.basis, Ts=start.Ts, info=info)
     return model, bool(result.converged)

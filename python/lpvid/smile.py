@@ -136,14 +136,23 @@ def _default_freqs(models: list[Ss], Ts: float | None) -> NDArray[np.float64]:
 
 
 def _leave_one_out(
-    models: list[Ss], phi: NDArray[np.float64], p: NDArray[np.float64], z: NDArray[np.complex128]
+    form: str,
+    models: list[Ss],
+    phi: NDArray[np.float64],
+    p: NDArray[np.float64],
+    Ts: float | None,
+    z: NDArray[np.complex128],
 ) -> float | None:
     """RMS relative FRF error at interior points predicted from the other points.
 
     Each interior point (not at the edge of the range in any parameter) is
-    left out in turn; the others are interpolated with the first
-    ``min(Nb, N - 2)`` basis functions and the model at the left-out value is
-    compared with the local model there. None when no point is interior.
+    left out in turn: the other points alone are brought to the coherent
+    form and interpolated with the first ``min(Nb, N - 2)`` basis functions,
+    and the model at the left-out value is compared with the local model
+    there (FRFs do not depend on state coordinates). Building the form
+    without the left-out point matters: a form that aligns neighbours to each
+    other would otherwise predict them deceptively well. None when no point
+    is interior or a form cannot be built without one of them.
     """
     N, k = phi.shape
     interior = np.all((p > p.min(axis=0)) & (p < p.max(axis=0)), axis=1)
@@ -151,17 +160,22 @@ def _leave_one_out(
         return None
     errs = []
     for q in np.flatnonzero(interior):
-        keep = np.arange(N) != q
+        keep = np.flatnonzero(np.arange(N) != q)
         cols = min(k, N - 1)
         sub = phi[keep][:, :cols]
         if np.linalg.matrix_rank(sub) < cols:
             continue
-        coefs, _ = _interpolate([models[i] for i in np.flatnonzero(keep)], sub)
+        try:
+            coherent, _ = _coherent(form, [models[i] for i in keep], p[keep], Ts)
+        except (CoherenceError, np.linalg.LinAlgError):
+            return None
+        coefs, _ = _interpolate(coherent, sub)
         pred = tuple(np.tensordot(phi[q, :cols], c, axes=1) for c in coefs)
         g_ref = _lti_frf(models[q], z)
         with np.errstate(all="ignore"):
             g = _lti_frf(pred, z)
-        errs.append(float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref)))
+        err = float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref))
+        errs.append(err if np.isfinite(err) else np.inf)
     if not errs:
         return None
     return float(np.sqrt(np.mean(np.square(errs))))
@@ -211,7 +225,7 @@ def _build(
         "condition": float(notes["condition"]),
         "interp_residual": resid["all"],
         "interp_residual_by_matrix": {k: resid[k] for k in "ABCD"},
-        "loo_error": _leave_one_out(coherent, phi, p, z),
+        "loo_error": _leave_one_out(form, models, phi, p, Ts, z),
         "n_groups": 4 * nb,
     }
     if "reference" in notes:
