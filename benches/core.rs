@@ -1,7 +1,9 @@
 //! Criterion benchmarks of the numerical core on a gantry-size problem
-//! (n=6, l=2, r=1, Nb=4, N=5, F=300, discrete time).
+//! (n=6, l=2, r=1, Nb=4, N=5, F=300, discrete time), and of time-domain
+//! simulation of a model of that size.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use lpvid::simulate::{simulate, simulate_zoh};
 use lpvid::{FreeSet, FrfData, Problem, Shape};
 use num_complex::Complex64 as C64;
 use std::hint::black_box;
@@ -113,5 +115,62 @@ fn bench_steps(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench_evaluation, bench_steps);
+/// A stable gantry-size model (n=6, r=1, l=2, Nb=4) and a trajectory of
+/// `t_len` samples: basis values of a slowly swept scheduling parameter and
+/// a random input.
+pub fn simulation_problem(t_len: usize) -> (Shape, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let shape = Shape::new(6, 1, 2, 4).expect("shape");
+    let mut rng = Lcg(11);
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.uniform()).collect();
+    let a0 = shape.block(lpvid::Matrix::A, 0);
+    for k in 0..shape.n {
+        theta[a0.start + k * (shape.n + 1)] += 0.5;
+    }
+    let basis: Vec<f64> = (0..t_len)
+        .flat_map(|t| {
+            let s = (t as f64 * 1e-4).sin();
+            (1..=4).map(move |i| s.powi(i))
+        })
+        .collect();
+    let u: Vec<f64> = (0..t_len).map(|_| rng.uniform()).collect();
+    (shape, theta, basis, u)
+}
+
+fn bench_simulation(c: &mut Criterion) {
+    let mut group = c.benchmark_group("simulate");
+    group.sample_size(20);
+    let (shape, theta, basis, u) = simulation_problem(1_000_000);
+    let x0 = vec![0.0; shape.n];
+    group.bench_function("discrete, 1e6 samples, n=6 l=2 r=1 Nb=4", |b| {
+        b.iter(|| {
+            black_box(simulate(&shape, &theta, &basis, black_box(&u), &x0, false).expect("sim"))
+        })
+    });
+    // Continuous time: a matrix exponential per sample (p varies every sample).
+    let mut ct = theta.clone();
+    let a0 = shape.block(lpvid::Matrix::A, 0);
+    for k in 0..shape.n {
+        ct[a0.start + k * (shape.n + 1)] -= 1.5;
+    }
+    let t_ct = 100_000;
+    group.bench_function("continuous (ZOH), 1e5 samples, n=6 l=2 r=1 Nb=4", |b| {
+        b.iter(|| {
+            black_box(
+                simulate_zoh(
+                    &shape,
+                    &ct,
+                    &basis[..t_ct * 4],
+                    &u[..t_ct],
+                    &x0,
+                    1e-3,
+                    false,
+                )
+                .expect("sim"),
+            )
+        })
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_evaluation, bench_steps, bench_simulation);
 criterion_main!(benches);

@@ -11,7 +11,7 @@ use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::problem::Problem;
-use crate::socp::{ConeGroup, ConeProblem, ConeSolver};
+use crate::socp::{ConeGroup, ConeProblem, ConeSolver, DEFAULT_CONE_TOL};
 use std::time::Instant;
 
 /// The reweighting rule (method.md (21)-(23)).
@@ -44,6 +44,8 @@ pub struct L21Settings {
     pub dvnls_min: f64,
     /// Relative magnitude (23) above which a group counts as in use.
     pub threshold: f64,
+    /// Accuracy of the cone solves (Clarabel's gap and feasibility tolerances).
+    pub cone_tol: f64,
     /// Inner loop also stops when an accepted step lowers the objective by
     /// less than `ftol` times its value.
     pub ftol: f64,
@@ -66,6 +68,7 @@ impl Default for L21Settings {
             dphi_min: 1e-3,
             dvnls_min: 1e-3,
             threshold: 1e-6,
+            cone_tol: DEFAULT_CONE_TOL,
             ftol: 1e-6,
             max_outer: 20,
             max_inner: 10,
@@ -92,7 +95,11 @@ impl L21Settings {
                 ));
             }
         }
-        for (name, v) in [("eps", self.eps), ("lambda0", self.lambda0)] {
+        for (name, v) in [
+            ("eps", self.eps),
+            ("lambda0", self.lambda0),
+            ("cone_tol", self.cone_tol),
+        ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(invalid(
                     name,
@@ -194,7 +201,8 @@ fn weigh(specs: &[GroupSpec], theta: &[f64], s: &L21Settings) -> Vec<ConeGroup> 
 ///
 /// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
 /// `gamma = 0` the problem is plain nonlinear least squares and the fit is
-/// Levenberg-Marquardt (the cone steps would reproduce its steps).
+/// [`levenberg_marquardt`] with its default settings (the cone steps would
+/// reproduce its steps at a higher price).
 pub fn fit_l21(
     problem: &Problem,
     theta0: &[f64],
@@ -208,11 +216,8 @@ pub fn fit_l21(
     let specs = group_specs(problem.shape(), free, sup_norms)?;
     if settings.gamma == 0.0 {
         let lm = LmSettings {
-            max_iter: settings.max_inner * settings.max_outer,
-            xtol: settings.dtheta_min,
-            ftol: settings.ftol,
-            gtol: 0.0,
             lambda0: settings.lambda0,
+            ..LmSettings::default()
         };
         let mut fit = levenberg_marquardt(problem, theta0, free, &lm, monitor)?;
         fit.objective = fit.vnls / problem.n_residuals() as f64;
@@ -233,7 +238,7 @@ pub fn fit_l21(
     let mut stop = Stop::MaxIterations;
     let mut groups = weigh(&specs, &theta, settings);
     let mut outer = 0;
-    let mut cone_solver = ConeSolver::default();
+    let mut cone_solver = ConeSolver::new(settings.cone_tol);
     'outer: while outer < settings.max_outer {
         groups = weigh(&specs, &theta, settings);
         let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();
@@ -250,13 +255,22 @@ pub fn fit_l21(
         }
         // Once the groups in use and the fit have settled, further outer
         // iterations only slide along similarity transforms that trade the
-        // size of the penalised groups for that of the constant parts.
-        let support: Vec<bool> = groups
+        // size of the penalised groups for that of the constant parts. A
+        // group between the threshold and a tenth of eps is still on its way
+        // out (its weight is near 1/eps and no longer moves): not settled.
+        let magnitudes: Vec<f64> = groups
             .iter()
-            .map(|g| g.varphi * g.norm_at(&theta) > settings.threshold)
+            .map(|g| g.varphi * g.norm_at(&theta))
             .collect();
+        let support: Vec<bool> = magnitudes.iter().map(|&m| m > settings.threshold).collect();
+        let dying = magnitudes
+            .iter()
+            .any(|&m| m > settings.threshold && m < 0.1 * settings.eps);
         if let Some((prev_support, prev_v)) = &prev_state {
-            if *prev_support == support && (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v {
+            if !dying
+                && *prev_support == support
+                && (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v
+            {
                 stop = Stop::Settled;
                 break;
             }
@@ -397,7 +411,7 @@ pub fn single_cone_step(
         gamma: settings.gamma,
         n_residuals: m_res,
     };
-    let solved = cone.solve(mu, &mut ConeSolver::default());
+    let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol));
     let objective = solved.step.as_ref().map_or(f64::NAN, |d| {
         let m = gn.dim();
         let mut quad = 0.0;

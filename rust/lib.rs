@@ -18,6 +18,7 @@ pub mod lm;
 pub mod lti;
 pub mod problem;
 pub mod response;
+pub mod simulate;
 pub mod socp;
 
 #[cfg(feature = "python")]

@@ -321,10 +321,20 @@ impl From<&clarabel::solver::DefaultSolution<f64>> for Solved {
 /// fit share their sparsity pattern, so the solver is built once (ordering,
 /// symbolic factorisation, equilibration) and later steps only overwrite
 /// its numbers. Every solve still starts cold.
-#[derive(Default)]
 pub struct ConeSolver {
+    tol: f64,
     cached: Option<(Key, DefaultSolver<f64>)>,
 }
+
+impl Default for ConeSolver {
+    fn default() -> Self {
+        ConeSolver::new(DEFAULT_CONE_TOL)
+    }
+}
+
+/// Clarabel's default accuracy: enough for a step that is accepted or not
+/// on the true objective.
+pub const DEFAULT_CONE_TOL: f64 = 1e-8;
 
 impl std::fmt::Debug for ConeSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -335,6 +345,13 @@ impl std::fmt::Debug for ConeSolver {
 }
 
 impl ConeSolver {
+    /// A solver whose cone programs are solved to `tol` (gap and
+    /// feasibility); below the default, Clarabel's iterative refinement is
+    /// switched on as well.
+    pub fn new(tol: f64) -> Self {
+        ConeSolver { tol, cached: None }
+    }
+
     fn run(&mut self, prog: &Program) -> Result<Solved, String> {
         let key = prog.key();
         let reuse = matches!(&self.cached, Some((k, _)) if *k == key);
@@ -358,7 +375,10 @@ impl ConeSolver {
                 .verbose(false)
                 .max_iter(200)
                 .max_threads(1)
-                .iterative_refinement_enable(false)
+                .tol_gap_abs(self.tol)
+                .tol_gap_rel(self.tol)
+                .tol_feas(self.tol)
+                .iterative_refinement_enable(self.tol < DEFAULT_CONE_TOL)
                 .presolve_enable(false)
                 .build()
                 .map_err(|e| format!("settings: {e}"))?;

@@ -15,6 +15,7 @@ from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.local import LocalModels, identify_lti
+from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.smile import smile, smile_candidates
@@ -32,10 +33,12 @@ __all__ = [
     "Legendre",
     "LocalModels",
     "LpvModel",
+    "Multisine",
     "PathResult",
     "Polynomial",
     "SingularModelError",
     "datasets",
+    "estimate_frf",
     "fd_subspace",
     "fit_l21",
     "fit_nls",
@@ -43,6 +46,7 @@ __all__ = [
     "free_mask",
     "identify_lti",
     "l21_path",
+    "multisine",
     "residual",
     "smile",
     "smile_candidates",

@@ -15,6 +15,18 @@ def frequency_response(
     n_points: int,
     z: NDArray[np.complex128],
 ) -> NDArray[np.complex128]: ...
+def simulate(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    theta: NDArray[np.float64],
+    basis: NDArray[np.float64],
+    u: NDArray[np.float64],
+    x0: NDArray[np.float64],
+    dt: float | None = None,
+    states: bool = False,
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]: ...
 
 class Problem:
     def __init__(

@@ -226,8 +226,18 @@ class Polynomial(_ScaledBasis):
 
     def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
         s = self.scale(p)
-        cols = [np.prod(s ** np.array(e), axis=1) for e in self.exponents]
-        return np.stack(cols, axis=1) if cols else np.zeros((p.shape[0], 0))
+        # Integer powers by repeated multiplication: a float ``**`` costs
+        # about ten times more, which shows on long trajectories (simulate).
+        powers = {1: s}
+        for d in range(2, self.degree + 1):
+            powers[d] = powers[d - 1] * s
+        out = np.empty((p.shape[0], len(self.exponents)))
+        for col, e in enumerate(self.exponents):
+            factors = [powers[d][:, k] for k, d in enumerate(e) if d]
+            out[:, col] = factors[0]
+            for f in factors[1:]:
+                out[:, col] *= f
+        return out
 
 
 class Legendre(_ScaledBasis):

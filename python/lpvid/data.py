@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -197,6 +198,79 @@ class FrfData:
         idx = np.arange(self.n_points)[points]
         idx = np.atleast_1d(idx)
         return FrfData(self.p[idx], self.freqs_hz, self.G[idx], self.sigma[idx], self.Ts)
+
+    @classmethod
+    def stack(cls, parts: Sequence[FrfData]) -> FrfData:
+        """Combine the data of several scheduling points into one data set.
+
+        Typically the single-point results of :func:`lpvid.estimate_frf`,
+        one per frozen scheduling value.
+
+        Parameters
+        ----------
+        parts : sequence of FrfData
+            Data sets with the same frequency lines, sample time, outputs,
+            inputs and number of scheduling parameters; their scheduling
+            values must all differ.
+
+        Returns
+        -------
+        FrfData
+            The points of ``parts[0]``, then those of ``parts[1]``, and so on.
+
+        Raises
+        ------
+        ValueError, TypeError
+            When ``parts`` is empty, holds something other than FrfData, or
+            the parts disagree (the message names the first offending part).
+
+        Examples
+        --------
+        >>> import numpy as np, lpvid
+        >>> a = lpvid.FrfData([0.0], [1.0, 2.0], np.ones((1, 2)))
+        >>> b = lpvid.FrfData([1.0], [1.0, 2.0], np.ones((1, 2)))
+        >>> lpvid.FrfData.stack([a, b]).p
+        array([0., 1.])
+
+        """
+        if isinstance(parts, FrfData):
+            raise TypeError("parts: expected a sequence of FrfData, got a single FrfData")
+        items = list(parts)
+        if not items:
+            raise ValueError("parts: needs at least one FrfData")
+        for i, d in enumerate(items):
+            if not isinstance(d, FrfData):
+                raise TypeError(f"parts[{i}]: expected FrfData, got {type(d).__name__}")
+        first = items[0]
+        for i, d in enumerate(items[1:], start=1):
+            if d.Ts != first.Ts:
+                raise ValueError(f"parts[{i}]: Ts={d.Ts} differs from Ts={first.Ts} of parts[0]")
+            if d.freqs_hz.shape != first.freqs_hz.shape or not np.allclose(
+                d.freqs_hz, first.freqs_hz, rtol=1e-12, atol=0.0
+            ):
+                raise ValueError(f"parts[{i}]: frequency lines differ from those of parts[0]")
+            if d.G.shape[2:] != first.G.shape[2:]:
+                raise ValueError(
+                    f"parts[{i}]: {d.n_outputs} outputs x {d.n_inputs} inputs, but parts[0] "
+                    f"has {first.n_outputs} x {first.n_inputs}"
+                )
+            if d.n_params != first.n_params:
+                raise ValueError(
+                    f"parts[{i}]: {d.n_params} scheduling parameters, but parts[0] has "
+                    f"{first.n_params}"
+                )
+        if all(d.p.ndim == 1 for d in items):
+            p = np.concatenate([d.p for d in items])
+        else:
+            p = np.concatenate([d.p.reshape(d.n_points, -1) for d in items])
+        G = np.concatenate([d.G for d in items])
+        sigma = np.concatenate([d.sigma for d in items])
+        try:
+            return cls(p, first.freqs_hz, G, sigma, first.Ts)
+        except ValueError as exc:
+            if str(exc).startswith("p:"):
+                raise ValueError(f"parts: {exc}") from exc
+            raise
 
     def __repr__(self) -> str:
         kind = "continuous time" if self.Ts is None else f"Ts={self.Ts:g} s"

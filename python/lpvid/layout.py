@@ -44,7 +44,7 @@ def fixed_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
     --------
     >>> import numpy as np, lpvid
     >>> m = lpvid.LpvModel(np.zeros((1, 2, 2)), np.ones((1, 2, 1)), np.ones((1, 1, 2)))
-    >>> lpvid.fixed_mask(m, {"D": True}).sum()
+    >>> int(lpvid.fixed_mask(m, {"D": True}).sum())
     1
 
     """

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid import _core
-from lpvid._checks import real_array, sample_time
+from lpvid._checks import positive_float, real_array, sample_time
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
 
@@ -242,6 +242,150 @@ class LpvModel:
             n, r, l, nb, self.theta, psi.ravel(), psi.shape[0], z_points(f, self.Ts)
         )
         return out.reshape(psi.shape[0], f.size, l, r)
+
+    def simulate(
+        self,
+        u: ArrayLike,
+        p: ArrayLike,
+        x0: ArrayLike | None = None,
+        *,
+        dt: float | None = None,
+        return_states: bool = False,
+    ) -> Any:
+        """Simulate the model in time along a scheduling trajectory ``p(t)``.
+
+        Discrete time (``Ts`` given), sample ``t = 0..T-1``::
+
+            x(t+1) = A(p(t)) x(t) + B(p(t)) u(t)
+            y(t)   = C(p(t)) x(t) + D(p(t)) u(t)
+
+        Continuous time (``Ts`` None): ``u`` and ``p`` are held constant over
+        each sample of ``dt`` seconds (zero-order hold) and the state
+        equation is solved exactly over the sample, ``x(t+1) = Ad x(t) +
+        Bd u(t)`` with ``[[Ad, Bd], [0, I]] = expm([[A, B], [0, 0]] dt)``
+        and ``A``, ``B`` frozen at ``p(t)``; ``y(t)`` as above. At a constant
+        ``p`` this is the usual ZOH discretisation of the frozen model (one
+        matrix exponential per sample, so slower than discrete time).
+
+        The recursion runs in the Rust core without the GIL; the basis is
+        evaluated in Python at every ``p(t)``.
+
+        Parameters
+        ----------
+        u : array_like, shape (T, r) or (T,) for one input
+            Inputs.
+        p : float or array_like, shape (T,) or (T, Np)
+            Scheduling value at every sample (a single number for a constant
+            ``p`` with one scheduling parameter).
+        x0 : array_like, shape (n,), optional
+            Initial state (default zero).
+        dt : float, optional
+            Sample time of ``u`` in seconds; required for a continuous-time
+            model, and for a discrete-time one only allowed equal to ``Ts``.
+        return_states : bool, optional
+            Also return the states.
+
+        Returns
+        -------
+        y : ndarray, shape (T, l)
+            Outputs.
+        x : ndarray, shape (T + 1, n)
+            Only with ``return_states``: ``x[t]`` is the state at sample ``t``;
+            the last row is the state after the last sample (pass it as
+            ``x0`` to continue).
+
+        Raises
+        ------
+        ValueError, TypeError
+            When ``u`` has the wrong number of inputs, ``p`` the wrong
+            length, ``x0`` the wrong size, ``dt`` is missing or inconsistent,
+            a value is NaN or Inf, or the basis is not finite along ``p``.
+            An unstable model gives non-finite outputs, not an error.
+
+        Examples
+        --------
+        >>> import numpy as np, lpvid
+        >>> m = lpvid.LpvModel([[0.5]], [[1.0]], [[1.0]], Ts=1.0)
+        >>> m.simulate(np.ones(4), 0.0).ravel()
+        array([0.  , 1.  , 1.5 , 1.75])
+
+        """
+        n, r, l, nb = self.shape
+        u_arr = real_array(u, "u", ndim=(1, 2))
+        if u_arr.ndim == 1:
+            if r != 1:
+                raise ValueError(
+                    f"u: the model has {r} inputs: expected shape (T, {r}), got {u_arr.shape}"
+                )
+            u_arr = u_arr[:, None]
+        if u_arr.shape[1] != r:
+            raise ValueError(
+                f"u: expected shape (T, {r}) for a model with {r} inputs, got {u_arr.shape}"
+            )
+        t_len = u_arr.shape[0]
+        if t_len == 0:
+            raise ValueError("u: needs at least one sample")
+        p_arr = real_array(p, "p", ndim=(0, 1, 2))
+        n_params = self.basis.n_params
+        if p_arr.ndim == 0:
+            if n_params != 1:
+                raise ValueError(
+                    f"p: the basis takes {n_params} scheduling parameters: expected shape "
+                    f"(T, {n_params}), got a single number"
+                )
+            p_arr = np.full(t_len, float(p_arr))
+        if p_arr.shape[0] != t_len:
+            raise ValueError(
+                f"p: expected one scheduling value per sample of u (T={t_len}), "
+                f"got {p_arr.shape[0]}"
+            )
+        if p_arr.ndim == 1 and n_params != 1:
+            raise ValueError(
+                f"p: the basis takes {n_params} scheduling parameters: expected shape "
+                f"(T, {n_params}), got {p_arr.shape}"
+            )
+        psi = np.ascontiguousarray(self.basis_values(p_arr), dtype=np.float64)
+        if x0 is None:
+            x_init = np.zeros(n)
+        else:
+            x_init = real_array(x0, "x0", ndim=1)
+            if x_init.shape != (n,):
+                raise ValueError(f"x0: expected {n} initial states, got shape {x_init.shape}")
+        if self.Ts is not None:
+            if dt is not None:
+                step = positive_float(dt, "dt")
+                if not np.isclose(step, self.Ts, rtol=1e-9, atol=0.0):
+                    raise ValueError(
+                        f"dt: a discrete-time model runs at its sample time Ts={self.Ts:g} s, "
+                        f"got dt={step:g}; leave dt out"
+                    )
+            hold = None
+        else:
+            if dt is None:
+                raise ValueError(
+                    "dt: a continuous-time model needs the sample time of u in seconds "
+                    "(zero-order hold), e.g. dt=1e-3"
+                )
+            hold = positive_float(dt, "dt")
+        # u_arr and psi are this call's own arrays: the core may read them
+        # without the GIL.
+        y, x = _core.simulate(
+            n,
+            r,
+            l,
+            nb,
+            self.theta,
+            psi.ravel(),
+            np.ascontiguousarray(u_arr).ravel(),
+            x_init,
+            hold,
+            bool(return_states),
+        )
+        y = y.reshape(t_len, l)
+        if return_states:
+            assert x is not None
+            return y, x.reshape(t_len + 1, n)
+        return y
 
     def poles(self, p: ArrayLike) -> NDArray[np.complex128]:
         """Eigenvalues of ``A(p)`` at one scheduling value."""

@@ -4,6 +4,7 @@
 mod convert;
 mod fit_py;
 mod problem_py;
+mod simulate_py;
 
 use pyo3::prelude::*;
 
@@ -24,5 +25,6 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     problem_py::register(m)?;
     fit_py::register(m)?;
+    simulate_py::register(m)?;
     Ok(())
 }
