@@ -14,9 +14,12 @@ from lpvid.data import FrfData
 from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
 from lpvid.layout import fixed_mask, free_mask
+from lpvid.local import LocalModels, identify_lti
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
+from lpvid.smile import smile, smile_candidates
+from lpvid.subspace import fd_subspace
 
 __version__ = "0.1.0"
 
@@ -28,6 +31,7 @@ __all__ = [
     "GroupNorms",
     "L21Result",
     "Legendre",
+    "LocalModels",
     "LpvModel",
     "Multisine",
     "PathResult",
@@ -35,12 +39,16 @@ __all__ = [
     "SingularModelError",
     "datasets",
     "estimate_frf",
+    "fd_subspace",
     "fit_l21",
     "fit_nls",
     "fixed_mask",
     "free_mask",
+    "identify_lti",
     "l21_path",
     "multisine",
     "residual",
+    "smile",
+    "smile_candidates",
     "vnls",
 ]

@@ -1,0 +1,83 @@
+"""Known systems for the subspace and SMILE tests (physical, not random)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import block_diag
+
+Ss = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+#: Scheduling points and band of the gantry-like system (tube side length in mm).
+GANTRY_P = np.array([24.0, 30.0, 36.0, 42.0, 48.0])
+GANTRY_MID = np.array([27.0, 33.0, 39.0, 45.0])
+GANTRY_FREQS = np.linspace(40.0, 400.0, 300)
+
+
+def gantry_like(p_mm: float, damping: float = 0.01) -> Ss:
+    """A three-mass chain whose stiffness and masses grow with the tube size p (mm).
+
+    Continuous time, 6 states, 1 input (force on mass 1), 2 outputs (the
+    accelerations of masses 1 and 3, so D != 0). The three modes move from
+    about 54/126/182 Hz at p = 24 to 98/228/329 Hz at p = 48 and have about
+    1.6 %, 1.2 % and 0.7 % damping. The states are (w0 q, dq/dt) with w0 =
+    2 pi 150 rad/s so that the entries of A are of one size.
+    """
+    s = float(p_mm) / 36.0
+    m = np.array([1.0, 0.8, 0.6]) * (0.7 + 0.3 * s)
+    k = np.array([1.0e6, 7.5e5, 5.0e5]) * s**2
+    K = np.array([[k[0] + k[1], -k[1], 0], [-k[1], k[1] + k[2], -k[2]], [0, -k[2], k[2]]])
+    Minv = np.diag(1 / m)
+    w = np.sqrt(np.sort(np.linalg.eigvals(Minv @ K).real))
+    Cd = 2 * damping / w.mean() * K + 0.6 * damping * w[0] * np.diag(m)
+    w0 = 2 * np.pi * 150.0
+    A = np.block([[np.zeros((3, 3)), w0 * np.eye(3)], [-Minv @ K / w0, -Minv @ Cd]])
+    B = np.concatenate([np.zeros((3, 1)), Minv[:, :1]])
+    acc = np.concatenate([-Minv @ K / w0, -Minv @ Cd], axis=1)
+    return A, B, acc[[0, 2]], Minv[[0, 2], :1]
+
+
+def modal_system(freqs_hz, dampings, bs, cs, D) -> Ss:
+    """Continuous-time model in real modal form: one 2 x 2 block per mode."""
+    blocks = []
+    for fr, ze in zip(freqs_hz, dampings, strict=True):
+        w = 2 * np.pi * fr
+        sig, wd = -ze * w, w * np.sqrt(1 - ze**2)
+        blocks.append(np.array([[sig, wd], [-wd, sig]]))
+    return block_diag(*blocks), np.concatenate(bs), np.concatenate(cs, axis=1), np.asarray(D)
+
+
+def lti_frf(model: Ss, z: np.ndarray) -> np.ndarray:
+    """FRF (M, l, r) of (A, B, C, D) at the points z by dense solves."""
+    A, B, C, D = model
+    n = A.shape[0]
+    return np.array([C @ np.linalg.solve(zz * np.eye(n) - A, B) + D for zz in z])
+
+
+def scramble(model: Ss, rng: np.random.Generator, spread: float = 1.0) -> Ss:
+    """The model in random state coordinates, T = Q1 diag(exp(u)) Q2, |u| <= spread."""
+    A, B, C, D = model
+    n = A.shape[0]
+    q1, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    q2, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    T = q1 @ np.diag(np.exp(rng.uniform(-spread, spread, n))) @ q2
+    Ti = np.linalg.inv(T)
+    return T @ A @ Ti, T @ B, C @ Ti, D.copy()
+
+
+def rel_err(a: np.ndarray, b: np.ndarray) -> float:
+    """||a - b|| / ||b||."""
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def close_modes(s: float, gap_hz: float = 0.3) -> Ss:
+    """Two light modes (0.5 %, 0.6 % damping) gap_hz apart near 150-175 Hz, 2 x 2 MIMO.
+
+    Both move with s in [0, 1]; their residues point in different directions.
+    """
+    return modal_system(
+        [150.0 + 20.0 * s, 150.0 + gap_hz + 20.0 * s + 5.0 * s**2],
+        [0.005, 0.006],
+        [np.array([[1.0, 0.2], [0.3, 1.0]]), np.array([[0.5 + 0.3 * s, -0.4], [0.2, 0.7]])],
+        [np.array([[1.0, 0.0], [0.2, 0.5]]), np.array([[0.3, 1.0], [-0.6, 0.4 * (1 + s)]])],
+        np.zeros((2, 2)),
+    )
