@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets
+from lpvid import datasets, report
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -17,6 +17,7 @@ from lpvid.layout import fixed_mask, free_mask
 from lpvid.local import LocalModels, identify_lti
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
+from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.smile import smile, smile_candidates
 from lpvid.subspace import fd_subspace
@@ -29,6 +30,7 @@ __all__ = [
     "FitResult",
     "FrfData",
     "GroupNorms",
+    "IdentifyResult",
     "L21Result",
     "Legendre",
     "LocalModels",
@@ -38,11 +40,13 @@ __all__ = [
     "Polynomial",
     "SingularModelError",
     "datasets",
+    "report",
     "estimate_frf",
     "fd_subspace",
     "fit_l21",
     "fit_nls",
     "fixed_mask",
+    "identify",
     "free_mask",
     "identify_lti",
     "l21_path",

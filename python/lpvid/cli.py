@@ -1,25 +1,236 @@
-"""The ``lpvid`` command line."""
+"""The ``lpvid`` command line: ``lpvid demo`` and ``lpvid fit``."""
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NoReturn
 
 import lpvid
 
 __all__ = ["main"]
 
+EXIT_MISUSE = 2
+
+FIT_EPILOG = """\
+The data file holds FRFs measured at frozen scheduling values:
+  .npz or .mat with p (N,) scheduling values, freqs_hz (F,) frequency lines,
+  G (N, F, l, r) complex FRFs (outputs x inputs), optionally sigma (same shape,
+  standard deviations; default 1) and Ts (sample time; absent or empty for
+  continuous time). lpvid.FrfData.save writes such files.
+
+The pipeline: one LTI model per point (frequency-domain subspace + Levenberg-
+Marquardt), SMILE interpolation over the basis in every coherent form, an
+unregularised fit, then the reweighted l2,1 path over gamma; the chosen model
+is the simplest whose validation error stays within --tolerance of the best
+(with --validation), else the knee of accuracy against the number of groups.
+
+gamma is normalised: a group of parameters (one basis function in one of A,
+B, C, D) is kept only when it lowers V_NLS by more than about gamma times the
+number of data points; 1e-3 keeps almost everything, 1e-1 keeps only what
+matters a lot.
+
+example:
+  lpvid fit gantry.npz --order 6 --basis poly:4 --validation gantry-val.npz --out fit1
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line and exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_MISUSE, f"{self.prog}: error: {message}\n")
+
+
+class _Misuse(Exception):
+    """A user error found after parsing (a file that cannot be read, bad values)."""
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lpvid`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="lpvid",
         description="Identify LPV state-space models from FRF data at frozen operating points.",
     )
     parser.add_argument("--version", action="version", version=f"lpvid {lpvid.__version__}")
-    parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    demo = sub.add_parser(
+        "demo",
+        help="run the whole pipeline on a built-in data set and write a report",
+        description="Run the whole pipeline on a built-in data set (a flexible gantry by "
+        "default), print the results and write a report with figures and the model files.",
+    )
+    demo.add_argument("--out", default="lpvid-demo", help="output folder (default: lpvid-demo)")
+    demo.add_argument(
+        "--data",
+        choices=("gantry", "stage"),
+        default="gantry",
+        help="built-in data set: the flexible gantry (default) or the positioning stage",
+    )
+    demo.add_argument("--no-figures", action="store_true", help="skip the figures")
+    demo.add_argument("--quiet", action="store_true", help="print only the results")
+
+    fit = sub.add_parser(
+        "fit",
+        help="identify an LPV model from your FRF data file",
+        description="Identify an LPV state-space model from FRF data measured at frozen "
+        "scheduling values, and write a report, the model (JSON and MATLAB) and figures.",
+        epilog=FIT_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    fit.add_argument("data", help="FRF data file (.npz or .mat)")
+    fit.add_argument("--order", type=int, required=True, help="number of states n")
+    fit.add_argument(
+        "--basis",
+        default="poly:2",
+        help="scheduling dependency: poly:D (powers 1..D) or legendre:D (default poly:2)",
+    )
+    fit.add_argument(
+        "--domain",
+        nargs=2,
+        type=float,
+        metavar=("LO", "HI"),
+        help="scheduling range mapped to [-1, 1] (default: the range of the data)",
+    )
+    fit.add_argument(
+        "--gamma",
+        nargs="+",
+        type=float,
+        metavar="G",
+        help="regularisation weights to sweep (default: 0.1 0.03 0.01 0.003 0.001)",
+    )
+    fit.add_argument(
+        "--fix",
+        action="append",
+        choices=("A", "B", "C", "D"),
+        default=[],
+        help="keep a matrix fixed; --fix D identifies strictly proper models (D = 0)",
+    )
+    fit.add_argument("--validation", help="FRF data at other scheduling values, same format")
+    fit.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.1,
+        help="relative slack on the best validation error for the choice (default 0.1)",
+    )
+    fit.add_argument("--out", required=True, help="output folder")
+    fit.add_argument("--no-figures", action="store_true", help="skip the figures")
+    fit.add_argument("--quiet", action="store_true", help="print only the results")
     return parser
+
+
+def _printer(quiet: bool) -> Any:
+    start = time.perf_counter()
+
+    def say(message: str) -> None:
+        if not quiet:
+            print(f"[{time.perf_counter() - start:6.2f} s] {message}", flush=True)
+
+    return say
+
+
+def _print_result(result: lpvid.IdentifyResult) -> None:
+    print()
+    print("Group magnitudes of the SMILE model (left ||theta_X(i)||, right relative to X(0)):")
+    print(result.initial.group_norms())
+    print()
+    print("Group magnitudes of the chosen model:")
+    print(result.model.group_norms())
+    print()
+    print("Accuracy against simplicity (-> the chosen model):")
+    print(result.table())
+    print()
+    print(result.summary())
+
+
+def _run(
+    result_of: Any, out: str, figures: bool, say: Any, title: str, description: str | None
+) -> int:
+    result = result_of()
+    say("writing the report")
+    path = lpvid.report.write_report(
+        result, out, title=title, description=description, figures=figures
+    )
+    _print_result(result)
+    print(f"report: {path}")
+    print(f"model: {Path(out) / 'model.json'} (and model.mat for MATLAB)")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    say = _printer(args.quiet)
+    ds = lpvid.datasets.gantry() if args.data == "gantry" else lpvid.datasets.positioning_stage()
+    if not args.quiet:
+        print(ds.description)
+        print()
+    return _run(
+        lambda: lpvid.identify(
+            ds.identification,
+            ds.order,
+            ds.basis,
+            validation=ds.validation,
+            fixed=ds.fixed,
+            progress=say,
+        ),
+        args.out,
+        not args.no_figures,
+        say,
+        f"lpvid demo: {ds.name}",
+        ds.description,
+    )
+
+
+def _basis(spec: str, domain: Any, data: lpvid.FrfData) -> lpvid.Basis:
+    kind, _, degree = spec.partition(":")
+    if kind not in ("poly", "legendre") or not degree.isdigit():
+        raise _Misuse(f"--basis: expected poly:D or legendre:D, got {spec!r}")
+    if domain is None:
+        lo, hi = data.p_range
+        domain = (lo, hi) if data.n_params == 1 else list(zip(lo, hi, strict=True))
+    if kind == "poly":
+        return lpvid.Polynomial(int(degree), domain=domain)
+    return lpvid.Legendre(int(degree), domain=domain)
+
+
+def _load(path: str, what: str) -> lpvid.FrfData:
+    if not Path(path).is_file():
+        raise _Misuse(f"{what}: no such file: {path}")
+    try:
+        return lpvid.FrfData.load(path)
+    except (ValueError, TypeError) as exc:
+        raise _Misuse(f"{what}: {exc}") from exc
+
+
+def _fit(args: argparse.Namespace) -> int:
+    say = _printer(args.quiet)
+    data = _load(args.data, "data")
+    validation = _load(args.validation, "--validation") if args.validation else None
+    if args.order < 1:
+        raise _Misuse(f"--order: expected a positive integer, got {args.order}")
+    basis = _basis(args.basis, args.domain, data)
+    fixed = {x: True for x in args.fix} or None
+    say(f"data: {data}")
+
+    def go() -> lpvid.IdentifyResult:
+        try:
+            return lpvid.identify(
+                data,
+                args.order,
+                basis,
+                gammas=args.gamma,
+                validation=validation,
+                fixed=fixed,
+                tolerance=args.tolerance,
+                progress=say,
+            )
+        except (ValueError, TypeError) as exc:
+            raise _Misuse(str(exc)) from exc
+
+    return _run(go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -29,7 +240,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    return 0
+    try:
+        return _demo(args) if args.command == "demo" else _fit(args)
+    except _Misuse as exc:
+        print(f"lpvid {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_MISUSE
+    except KeyboardInterrupt:
+        print(f"lpvid {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

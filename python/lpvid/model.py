@@ -414,12 +414,17 @@ class LpvModel:
 
     # ------------------------------------------------------------------- files
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write the model to a versioned JSON file, whole or not at all.
+        """Write the model to a file, whole or not at all.
+
+        ``.json``: lpvid's versioned model file (see :mod:`lpvid.modelfile`).
+        ``.mat``: a MATLAB file with ``A`` as ``n x n x (Nb+1)`` (``A(:,:,1)``
+        the constant part) and likewise ``B``, ``C``, ``D``, the basis and
+        ``Ts``; lpvid reads it back exactly.
 
         Parameters
         ----------
         path : str or path-like
-            Target file (``.json``).
+            Target file (``.json`` or ``.mat``).
 
         Returns
         -------
@@ -443,6 +448,30 @@ class LpvModel:
         from lpvid.modelfile import load_model
 
         return load_model(path)
+
+    def to_control(self, p: ArrayLike) -> Any:
+        """The frozen model at ``p`` as a python-control ``StateSpace``.
+
+        Needs the optional extra python-control (``pip install "lpvid[control]"``).
+
+        Parameters
+        ----------
+        p : float or array_like of shape (Np,)
+            One scheduling value.
+
+        Returns
+        -------
+        control.StateSpace
+            Discrete time with ``dt = Ts``, or continuous time.
+        """
+        try:
+            import control
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                'to_control needs python-control: pip install "lpvid[control]"'
+            ) from exc
+        A, B, C, D = self.at(p)
+        return control.ss(A, B, C, D, 0 if self.Ts is None else self.Ts)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LpvModel):

@@ -20,6 +20,15 @@ Format (version 1)::
 Floats are written with Python's shortest round-trip representation, so a
 model read back is equal to the one saved, to the last bit. The checksum
 catches a damaged file.
+
+MATLAB export (``.mat``, readable with ``load`` in MATLAB): ``A`` as an
+``n x n x (Nb+1)`` array with ``A(:,:,1)`` the constant part and
+``A(:,:,i+1)`` the coefficient of ``psi_i`` (likewise ``B``, ``C``, ``D``),
+``Ts`` (empty for continuous time), ``basis_kind``, ``basis_degree``,
+``basis_domain`` (one row ``[lo hi]`` per scheduling parameter),
+``basis_names``, ``p_range``, ``description``, and ``lpvid_model``: the JSON
+document above as text, from which :func:`load_model` reads the model back
+exactly.
 """
 
 from __future__ import annotations
@@ -80,8 +89,7 @@ def model_from_dict(content: dict[str, Any]) -> LpvModel:
     return model
 
 
-def save_model(model: LpvModel, path: str | os.PathLike[str]) -> Path:
-    """Write ``model`` to ``path`` in the lpvid JSON format; see :meth:`LpvModel.save`."""
+def _document(model: LpvModel) -> bytes:
     content = model_to_dict(model)
     doc = {
         "format": FORMAT,
@@ -89,15 +97,64 @@ def save_model(model: LpvModel, path: str | os.PathLike[str]) -> Path:
         "content": content,
         "sha256": hashlib.sha256(_canonical(content)).hexdigest(),
     }
-    text = json.dumps(doc, indent=1, allow_nan=False).encode()
-    return write_atomic(path, lambda fh: fh.write(text))
+    return json.dumps(doc, indent=1, allow_nan=False).encode()
+
+
+def save_model(model: LpvModel, path: str | os.PathLike[str]) -> Path:
+    """Write ``model`` to ``path``: lpvid JSON (``.json``) or MATLAB (``.mat``).
+
+    See :meth:`LpvModel.save`.
+    """
+    suffix = Path(path).suffix.lower()
+    text = _document(model)
+    if suffix == ".json":
+        return write_atomic(path, lambda fh: fh.write(text))
+    if suffix == ".mat":
+        from scipy.io import savemat
+
+        variables = _matlab_variables(model, text.decode())
+        return write_atomic(path, lambda fh: savemat(fh, variables, do_compression=True))
+    raise ValueError(f"path: expected a .json or .mat file, got {Path(path).name!r}")
+
+
+def _matlab_variables(model: LpvModel, document: str) -> dict[str, Any]:
+    basis = model.basis.to_dict()
+    domain = basis.get("domain")
+    out: dict[str, Any] = {name: np.moveaxis(arr, 0, -1) for name, arr in model.matrices().items()}
+    out.update(
+        Ts=np.array([]) if model.Ts is None else np.array(model.Ts),
+        basis_kind=basis["kind"],
+        basis_degree=np.array(basis["degree"], dtype=float),
+        basis_domain=np.zeros((0, 2)) if domain is None else np.array(domain, dtype=float),
+        basis_names=np.array(model.basis.names, dtype=object),
+        p_range=np.zeros((0, 2)) if model.p_range is None else np.atleast_2d(model.p_range),
+        description=(
+            "lpvid LPV model: X(p) = X(:,:,1) + sum_i psi_i(p) X(:,:,i+1) for X in A, B, C, D; "
+            "psi_i as named in basis_names, with s = p mapped from basis_domain to [-1, 1]; "
+            + ("continuous time" if model.Ts is None else f"discrete time, Ts = {model.Ts:g} s")
+        ),
+        lpvid_model=document,
+    )
+    return out
 
 
 def load_model(path: str | os.PathLike[str]) -> LpvModel:
-    """Read a model file; see :meth:`LpvModel.load`."""
+    """Read a model file (``.json`` or ``.mat`` written by lpvid); see :meth:`LpvModel.load`."""
     p = Path(path)
+    if p.suffix.lower() == ".mat":
+        from scipy.io import loadmat
+
+        try:
+            raw = loadmat(p).get("lpvid_model")
+        except (OSError, ValueError, TypeError) as exc:
+            raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+        if raw is None or raw.dtype.kind != "U":
+            raise ValueError(f"path: {p.name} is not an lpvid model file (no lpvid_model)")
+        data = str(raw.ravel()[0]).encode()
+    else:
+        data = p.read_bytes()
     try:
-        doc = json.loads(p.read_bytes())
+        doc = json.loads(data)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(
             f"path: {p.name} is not an lpvid model file (not valid JSON: {exc})"

@@ -1,0 +1,435 @@
+"""The whole identification pipeline: local models, SMILE, NLS, l2,1 path, a choice.
+
+:func:`identify` chains :func:`~lpvid.identify_lti`, :func:`~lpvid.smile`
+(every coherent form), :func:`~lpvid.fit_nls` and :func:`~lpvid.l21_path`,
+then chooses a model on the path and says why.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lpvid._checks import positive_float, positive_int, real_array
+from lpvid.basis import Basis
+from lpvid.cost import check_compatible, vnls
+from lpvid.data import FrfData
+from lpvid.fit import fit_l21, fit_nls
+from lpvid.local import LocalModels, identify_lti
+from lpvid.model import LpvModel
+from lpvid.results import FitResult, PathResult
+from lpvid.smile import smile_candidates
+
+__all__ = ["DEFAULT_GAMMAS", "Candidate", "PathEntry", "IdentifyResult", "identify"]
+
+#: Default sweep of the (normalised) regularisation weight, largest first.
+DEFAULT_GAMMAS = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)
+
+Progress = Callable[[str], Any]
+
+
+@dataclass
+class Candidate:
+    """An initial model: a SMILE form (or another route) refined by :func:`fit_nls`.
+
+    Attributes
+    ----------
+    name : str
+        Route and coherent form, e.g. ``"smile:observability"``.
+    model : LpvModel
+        The refined model.
+    vnls : float
+        V_NLS on the identification data.
+    validation_vnls : float or None
+        V_NLS on the validation data, when given.
+    constant_groups : int
+        Groups the SMILE model left constant (a simplicity measure).
+    """
+
+    name: str
+    model: LpvModel
+    vnls: float
+    validation_vnls: float | None
+    constant_groups: int
+
+
+@dataclass
+class PathEntry:
+    """One model of the accuracy-versus-simplicity curve.
+
+    Attributes
+    ----------
+    gamma : float
+        Regularisation weight (0 for the unregularised model).
+    model : LpvModel
+    vnls, noise_floor : float, int
+        V_NLS on the identification data and its noise floor.
+    validation_vnls, validation_floor : float or None, int or None
+        The same on the validation data, when given.
+    n_groups : int
+        Groups kept (relative magnitude above the threshold).
+    nonzero_groups : dict
+        Basis indices kept per matrix.
+    seconds : float
+        Time the fit took.
+    """
+
+    gamma: float
+    model: LpvModel
+    vnls: float
+    noise_floor: int
+    validation_vnls: float | None
+    validation_floor: int | None
+    n_groups: int
+    nonzero_groups: dict[str, list[int]]
+    seconds: float
+
+
+@dataclass
+class IdentifyResult:
+    """Outcome of :func:`identify`.
+
+    Attributes
+    ----------
+    model : LpvModel
+        The chosen model.
+    chosen : int
+        Its index in :attr:`entries`.
+    reason : str
+        Why it was chosen.
+    entries : list of PathEntry
+        The unregularised model (gamma = 0) and every model of the l2,1
+        path, with V_NLS, groups kept and timings.
+    initial : LpvModel
+        The SMILE model the fits started from (the chosen coherent form).
+    candidates : list of Candidate
+        Every initial model tried, refined by fit_nls.
+    initial_reason : str
+        Why that starting point was chosen.
+    local : LocalModels
+        The local LTI models.
+    nls : FitResult
+        The unregularised fit.
+    path : PathResult
+        The l2,1 path.
+    data, validation : FrfData, FrfData or None
+        The data used.
+    timings : dict
+        Seconds per stage: ``"local_s"``, ``"smile_s"``, ``"nls_s"``,
+        ``"path_s"``, ``"total_s"``.
+    """
+
+    model: LpvModel
+    chosen: int
+    reason: str
+    entries: list[PathEntry]
+    initial: LpvModel
+    candidates: list[Candidate]
+    initial_reason: str
+    local: LocalModels
+    nls: FitResult
+    path: PathResult
+    data: FrfData
+    validation: FrfData | None
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def entry(self) -> PathEntry:
+        """The chosen entry."""
+        return self.entries[self.chosen]
+
+    def table(self) -> str:
+        """The accuracy-versus-simplicity table, the chosen model marked."""
+        val = self.validation is not None
+        head = f"{'':2}{'gamma':>9} {'groups':>6} {'V_NLS':>11} {'V/floor':>8}"
+        if val:
+            head += f" {'val V_NLS':>11} {'val/floor':>9}"
+        lines = [head]
+        for k, e in enumerate(self.entries):
+            mark = "->" if k == self.chosen else ""
+            line = (
+                f"{mark:2}{e.gamma:9.3g} {e.n_groups:6d} {e.vnls:11.5g} "
+                f"{e.vnls / e.noise_floor:8.4f}"
+            )
+            if val and e.validation_vnls is not None and e.validation_floor:
+                line += f" {e.validation_vnls:11.5g} {e.validation_vnls / e.validation_floor:9.4f}"
+            lines.append(line)
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        """A few lines for people."""
+        e = self.entry
+        lines = [
+            f"start: {self.initial.info.get('form', '?')} coherent form ({self.initial_reason})",
+            f"chosen: gamma = {e.gamma:g}, {e.n_groups} groups kept "
+            f"(the SMILE model uses {self.initial.group_norms().count()}); {self.reason}",
+            f"V_NLS = {e.vnls:.6g} on identification data (noise floor {e.noise_floor}, "
+            f"ratio {e.vnls / e.noise_floor:.3f})",
+        ]
+        if e.validation_vnls is not None and e.validation_floor:
+            lines.append(
+                f"V_NLS = {e.validation_vnls:.6g} on validation data (noise floor "
+                f"{e.validation_floor}, ratio {e.validation_vnls / e.validation_floor:.3f})"
+            )
+        lines.append(f"time: {self.timings.get('total_s', float('nan')):.2f} s")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        e = self.entry
+        return (
+            f"IdentifyResult(gamma={e.gamma:g}, groups={e.n_groups}, "
+            f"V/floor={e.vnls / e.noise_floor:.3f})"
+        )
+
+
+def _say(progress: Progress | None, message: str) -> None:
+    if progress is not None:
+        progress(message)
+
+
+def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
+    if validation is None:
+        return None
+    if not isinstance(validation, FrfData):
+        raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
+    if (validation.n_outputs, validation.n_inputs, validation.n_params) != (
+        data.n_outputs,
+        data.n_inputs,
+        data.n_params,
+    ):
+        raise ValueError("validation: outputs, inputs or scheduling parameters differ from data's")
+    if (validation.Ts is None) != (data.Ts is None) or (
+        data.Ts is not None and not np.isclose(validation.Ts, data.Ts, rtol=1e-12)  # type: ignore[arg-type]
+    ):
+        raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
+    return validation
+
+
+def _strictly_proper(fixed: Any) -> bool:
+    """Whether ``fixed`` asks to keep all of D (so the local models have D = 0)."""
+    return isinstance(fixed, dict) and fixed.get("D") is True
+
+
+def _choose_start(candidates: list[Candidate], validated: bool) -> tuple[Candidate, str]:
+    if validated:
+        best = min(candidates, key=lambda c: (c.validation_vnls, -c.constant_groups))
+        return best, "lowest validation V_NLS after fit_nls"
+    best = min(candidates, key=lambda c: (round(c.vnls, 6), -c.constant_groups))
+    return best, "lowest identification V_NLS after fit_nls (no validation data)"
+
+
+def _knee(entries: list[PathEntry]) -> tuple[int, str]:
+    """The knee of V_NLS against the number of groups (no validation data).
+
+    With the curve normalised to the unit square (groups kept on x, V_NLS
+    on y, falling from the simplest model to the richest), the knee is the
+    point farthest below the chord between the two ends: where adding
+    groups stops buying accuracy. When the whole curve lies within the
+    noise (the spread of V_NLS is below two standard deviations of the
+    noise floor, ``2 sqrt(M)``), the simplest model is as good as any.
+    """
+    by_groups: dict[int, int] = {}
+    for k, e in enumerate(entries):
+        if e.n_groups not in by_groups or e.vnls < entries[by_groups[e.n_groups]].vnls:
+            by_groups[e.n_groups] = k
+    ks = [by_groups[g] for g in sorted(by_groups)]
+    x = np.array([entries[k].n_groups for k in ks], dtype=float)
+    y = np.array([entries[k].vnls for k in ks])
+    floor = entries[0].noise_floor
+    if len(ks) == 1 or y.max() - y.min() < 2 * np.sqrt(floor):
+        k = ks[0]
+        return k, (
+            "no validation data; every model on the path fits within the noise "
+            "(spread of V_NLS below 2 sqrt(M)), so the simplest is kept"
+        )
+    xn = (x - x[0]) / (x[-1] - x[0])
+    yn = (y - y[-1]) / (y[0] - y[-1]) if y[0] != y[-1] else np.zeros_like(y)
+    depth = (1.0 - xn) - yn
+    k = ks[int(np.argmax(depth))]
+    return k, "no validation data; the knee of V_NLS against the number of groups kept"
+
+
+def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
+    if entries[0].validation_vnls is None:
+        return _knee(entries)
+    vals = np.array([e.validation_vnls for e in entries], dtype=float)
+    best = float(vals.min())
+    ok = [k for k in range(len(entries)) if vals[k] <= (1 + tolerance) * best]
+    k = min(ok, key=lambda i: (entries[i].n_groups, vals[i]))
+    return k, (
+        f"the simplest model whose validation V_NLS ({vals[k]:.5g}) is within "
+        f"{tolerance:.0%} of the best on the path ({best:.5g})"
+    )
+
+
+def identify(
+    data: FrfData,
+    order: int,
+    basis: Basis,
+    gammas: Sequence[float] | None = None,
+    validation: FrfData | None = None,
+    fixed: Any = None,
+    *,
+    forms: Sequence[str] | None = None,
+    tolerance: float = 0.1,
+    eps: float = 1e-3,
+    threshold: float = 1e-6,
+    max_outer: int = 10,
+    progress: Progress | None = None,
+) -> IdentifyResult:
+    """Identify an LPV model from FRF data: the whole pipeline.
+
+    1. One LTI model per scheduling point (:func:`~lpvid.identify_lti`).
+    2. SMILE interpolation over ``basis`` in every coherent form
+       (:func:`~lpvid.smile_candidates`), each refined by :func:`~lpvid.fit_nls`;
+       the start is the one with the lowest validation V_NLS (identification
+       V_NLS without validation data), the simpler on a tie.
+    3. The reweighted l2,1 path over ``gammas`` from the refined start
+       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first).
+    4. A choice among the unregularised model and the path: with
+       ``validation`` data, the simplest model whose validation V_NLS is
+       within ``tolerance`` of the best; without, the knee of the
+       accuracy-versus-number-of-groups curve.
+
+    Parameters
+    ----------
+    data : FrfData
+        Identification data.
+    order : int
+        Number of states.
+    basis : Basis
+        Basis functions of the scheduling dependency (normalise the
+        scheduling range: e.g. ``Polynomial(4, domain=(p_min, p_max))``).
+    gammas : sequence of float, optional
+        Regularisation weights (lpvid's normalised gamma, see
+        :func:`~lpvid.fit_l21`); default :data:`DEFAULT_GAMMAS`.
+    validation : FrfData, optional
+        Data at other scheduling values, used to judge every model.
+    fixed : optional
+        Parameters kept fixed (see :func:`~lpvid.fixed_mask`). With
+        ``{"D": True}`` the local models are strictly proper and D stays zero.
+    forms : sequence of str, optional
+        Coherent forms to try (default all, see :data:`lpvid.smile.FORMS`).
+    tolerance : float
+        Relative slack on the best validation V_NLS for the choice.
+    eps, threshold, max_outer
+        Passed to :func:`~lpvid.l21_path`.
+    progress : callable, optional
+        Called with a short message at every stage and every fit on the path.
+
+    Returns
+    -------
+    IdentifyResult
+    """
+    t0 = time.perf_counter()
+    if not isinstance(data, FrfData):
+        raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
+    if not isinstance(basis, Basis):
+        raise TypeError(f"basis: expected an lpvid basis, got {type(basis).__name__}")
+    n = positive_int(order, "order")
+    validation = _check_validation(data, validation)
+    gs = real_array(DEFAULT_GAMMAS if gammas is None else gammas, "gammas", ndim=1)
+    if gs.size == 0 or np.any(gs <= 0):
+        raise ValueError("gammas: needs at least one value, all > 0")
+    tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    if data.n_points < len(basis) + 1:
+        raise ValueError(
+            f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
+            f"points, the data have {data.n_points}"
+        )
+    timings: dict[str, float] = {}
+
+    _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
+    t = time.perf_counter()
+    local = identify_lti(data, n, strictly_proper=_strictly_proper(fixed))
+    timings["local_s"] = time.perf_counter() - t
+
+    _say(progress, "SMILE interpolation in every coherent form, each refined by fit_nls")
+    t = time.perf_counter()
+    initial_models = smile_candidates(local, basis=basis, forms=forms)
+    if not initial_models:
+        raise ValueError("no coherent form could be built for these local models")
+    candidates: list[Candidate] = []
+    fits: dict[str, FitResult] = {}
+    for form, m0 in initial_models.items():
+        check_compatible(m0, data)
+        fit = fit_nls(m0, data, fixed)
+        fits[form] = fit
+        candidates.append(
+            Candidate(
+                name=f"smile:{form}",
+                model=fit.model,
+                vnls=fit.vnls,
+                validation_vnls=None if validation is None else vnls(fit.model, validation),
+                constant_groups=int(m0.info.get("constant_groups", 0)),
+            )
+        )
+    timings["smile_s"] = time.perf_counter() - t
+    start, initial_reason = _choose_start(candidates, validation is not None)
+    form = start.name.split(":", 1)[1]
+    nls = fits[form]
+    timings["nls_s"] = nls.timings["total_s"]
+
+    _say(progress, f"l2,1 path over {gs.size} values of gamma from the {form} start")
+    t = time.perf_counter()
+    # The path of l21_path, run here one gamma at a time to report progress.
+    results = []
+    current = nls.model
+    entries = [_entry(0.0, nls.model, data, validation, threshold, nls.timings["total_s"])]
+    for g in sorted(gs, reverse=True):
+        r = fit_l21(
+            current, data, g, eps=eps, fixed=fixed, threshold=threshold, max_outer=max_outer
+        )
+        results.append(r)
+        current = r.model
+        entries.append(_entry(r.gamma, r.model, data, validation, threshold, r.timings["total_s"]))
+        _say(
+            progress,
+            f"  gamma = {r.gamma:g}: {r.n_groups} groups, V_NLS/floor "
+            f"{r.vnls / r.noise_floor:.3f}, {r.n_iter} cone steps",
+        )
+    path = PathResult(results)
+    timings["path_s"] = time.perf_counter() - t
+    chosen, reason = _choose(entries, tol)
+    timings["total_s"] = time.perf_counter() - t0
+    return IdentifyResult(
+        model=entries[chosen].model,
+        chosen=chosen,
+        reason=reason,
+        entries=entries,
+        initial=initial_models[form],
+        candidates=candidates,
+        initial_reason=initial_reason,
+        local=local,
+        nls=nls,
+        path=path,
+        data=data,
+        validation=validation,
+        timings=timings,
+    )
+
+
+def _entry(
+    gamma: float,
+    model: LpvModel,
+    data: FrfData,
+    validation: FrfData | None,
+    threshold: float,
+    seconds: float,
+) -> PathEntry:
+    norms = model.group_norms()
+    return PathEntry(
+        gamma=float(gamma),
+        model=model,
+        vnls=vnls(model, data),
+        noise_floor=data.n_residuals,
+        validation_vnls=None if validation is None else vnls(model, validation),
+        validation_floor=None if validation is None else validation.n_residuals,
+        n_groups=norms.count(threshold),
+        nonzero_groups=norms.nonzero(threshold),
+        seconds=float(seconds),
+    )

@@ -1,0 +1,222 @@
+"""Reports of an identification: Markdown with figures, model files, key numbers."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lpvid._files import write_atomic
+from lpvid.pipeline import IdentifyResult
+
+__all__ = ["write_report", "key_numbers"]
+
+
+def key_numbers(result: IdentifyResult) -> dict[str, Any]:
+    """The numbers a report states, JSON-ready (also written as ``result.json``)."""
+    e = result.entry
+    return {
+        "order": result.model.n_states,
+        "basis": result.model.basis.names,
+        "initial_form": result.initial.info.get("form"),
+        "chosen_gamma": e.gamma,
+        "chosen_index": result.chosen,
+        "reason": result.reason,
+        "groups_smile": result.initial.group_norms().count(),
+        "groups_chosen": e.n_groups,
+        "nonzero_groups": {k: [int(i) for i in v] for k, v in e.nonzero_groups.items()},
+        "vnls": e.vnls,
+        "noise_floor": e.noise_floor,
+        "validation_vnls": e.validation_vnls,
+        "validation_floor": e.validation_floor,
+        "vnls_unregularised": result.entries[0].vnls,
+        "validation_vnls_unregularised": result.entries[0].validation_vnls,
+        "path": [
+            {
+                "gamma": p.gamma,
+                "n_groups": p.n_groups,
+                "vnls": p.vnls,
+                "validation_vnls": p.validation_vnls,
+                "seconds": p.seconds,
+            }
+            for p in result.entries
+        ],
+        "timings": result.timings,
+    }
+
+
+def _figures(result: IdentifyResult, folder: Path) -> list[tuple[str, str]]:
+    """Draw the report's figures; returns (caption, relative path) pairs."""
+    from lpvid import plots
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out: list[tuple[str, str]] = []
+    model, data = result.model, result.data
+
+    def keep(fig: Any, name: str, caption: str) -> None:
+        plots.save(fig, folder / name)
+        out.append((caption, f"{folder.name}/{name}"))
+
+    keep(
+        plots.frf_fit(model, data, title="identification points"),
+        "frf_identification.png",
+        "Measured FRF, model FRF, error |G - Gm| and sigma at the identification points",
+    )
+    if result.validation is not None:
+        keep(
+            plots.frf_fit(model, result.validation, title="validation points"),
+            "frf_validation.png",
+            "The same at the validation points",
+        )
+    if data.n_params == 1:
+        lo, hi = data.p_range
+        keep(
+            plots.magnitude_surface(model, data.freqs_hz, np.linspace(lo, hi, 60)),
+            "surface.png",
+            "Magnitude of the chosen model over frequency and scheduling",
+        )
+    keep(
+        plots.group_norms({"SMILE": result.initial, "chosen": model}),
+        "group_norms.png",
+        "Relative group magnitudes of the SMILE model and the chosen model",
+    )
+    val = None
+    if result.validation is not None:
+        val = np.array([e.validation_vnls for e in result.path.results], dtype=float)
+    chosen = result.chosen - 1 if result.chosen > 0 else None
+    keep(
+        plots.accuracy_path(result.path, validation_vnls=val, chosen=chosen),
+        "path.png",
+        "Accuracy against simplicity along the l2,1 path",
+    )
+    return out
+
+
+def write_report(
+    result: IdentifyResult,
+    out_dir: str | os.PathLike[str],
+    *,
+    title: str = "lpvid identification",
+    description: str | None = None,
+    figures: bool = True,
+) -> Path:
+    """Write a Markdown report, its figures, the model files and the key numbers.
+
+    Files written to ``out_dir`` (created when missing), each whole or not
+    at all: ``report.md``, ``model.json`` (lpvid's model file),
+    ``model.mat`` (MATLAB), ``result.json`` (:func:`key_numbers`) and, when
+    ``figures`` and matplotlib is installed, PNG figures in ``figures/``.
+
+    Parameters
+    ----------
+    result : IdentifyResult
+        What :func:`lpvid.identify` returned.
+    out_dir : str or path-like
+        Target folder.
+    title : str
+        Report title.
+    description : str, optional
+        A paragraph on the system and the data.
+    figures : bool
+        Draw the figures (needs matplotlib).
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``report.md``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    result.model.save(out / "model.json")
+    result.model.save(out / "model.mat")
+    numbers = key_numbers(result)
+    text = json.dumps(numbers, indent=1, allow_nan=True).encode()
+    write_atomic(out / "result.json", lambda fh: fh.write(text))
+    drawn: list[tuple[str, str]] = []
+    figure_note = ""
+    if figures:
+        try:
+            drawn = _figures(result, out / "figures")
+        except ImportError as exc:
+            figure_note = f"(figures skipped: {exc})"
+    md = _markdown(result, title, description, drawn, figure_note)
+    return write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
+
+
+def _markdown(
+    result: IdentifyResult,
+    title: str,
+    description: str | None,
+    drawn: list[tuple[str, str]],
+    figure_note: str,
+) -> str:
+    data, e = result.data, result.entry
+    kind = "continuous time" if data.Ts is None else f"discrete time, Ts = {data.Ts:g} s"
+    lines = [f"# {title}", ""]
+    if description:
+        lines += [description.strip(), ""]
+    lines += [
+        "## Data",
+        "",
+        f"- identification: {data.n_points} scheduling points, {data.n_lines} lines "
+        f"({data.freqs_hz[0]:g}-{data.freqs_hz[-1]:g} Hz), {data.n_outputs} outputs x "
+        f"{data.n_inputs} inputs, {kind}; noise floor M = {data.n_residuals}",
+    ]
+    if result.validation is not None:
+        v = result.validation
+        lines.append(
+            f"- validation: {v.n_points} scheduling points; noise floor M = {v.n_residuals}"
+        )
+    lines += [
+        "",
+        "## Result",
+        "",
+        f"- order {result.model.n_states}, basis {', '.join(result.model.basis.names)}",
+        f"- start: SMILE in the {result.initial.info.get('form', '?')} coherent form "
+        f"({result.initial_reason})",
+        f"- chosen: gamma = {e.gamma:g} with {e.n_groups} groups kept "
+        f"(SMILE: {result.initial.group_norms().count()}); {result.reason}",
+        f"- V_NLS = {e.vnls:.6g} on the identification data: {e.vnls / e.noise_floor:.4f} "
+        "times the noise floor",
+    ]
+    if e.validation_vnls is not None and e.validation_floor:
+        lines.append(
+            f"- V_NLS = {e.validation_vnls:.6g} on the validation data: "
+            f"{e.validation_vnls / e.validation_floor:.4f} times the noise floor"
+        )
+    lines += [
+        f"- time: {result.timings['total_s']:.2f} s (local models "
+        f"{result.timings['local_s']:.2f} s, SMILE and NLS {result.timings['smile_s']:.2f} s, "
+        f"l2,1 path {result.timings['path_s']:.2f} s)",
+        "",
+        "### Accuracy against simplicity (-> the chosen model)",
+        "",
+        "```",
+        result.table(),
+        "```",
+        "",
+        "### Group magnitudes of the SMILE model (left: ||theta_X(i)||, right: relative)",
+        "",
+        "```",
+        str(result.initial.group_norms()),
+        "```",
+        "",
+        "### Group magnitudes of the chosen model",
+        "",
+        "```",
+        str(result.model.group_norms()),
+        "```",
+        "",
+        "Files: `model.json` (lpvid model file), `model.mat` (MATLAB), `result.json`.",
+        "",
+    ]
+    if drawn or figure_note:
+        lines += ["## Figures", ""]
+        if figure_note:
+            lines += [figure_note, ""]
+        for caption, rel in drawn:
+            lines += [f"![{caption}]({rel})", "", f"*{caption}*", ""]
+    return "\n".join(lines)

@@ -1,0 +1,164 @@
+"""identify(), reports, model files and the command line, end to end."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid.cli import main
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """The demo as a user runs it: `lpvid demo --out DIR`."""
+    out = tmp_path_factory.mktemp("demo")
+    code = main(["demo", "--out", str(out), "--quiet"])
+    return code, out
+
+
+@pytest.fixture(scope="module")
+def gantry_result():
+    ds = lpvid.datasets.gantry(n_lines=120)
+    return ds, lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
+
+
+def test_demo_writes_its_files(demo):
+    code, out = demo
+    assert code == 0
+    for name in ("report.md", "model.json", "model.mat", "result.json"):
+        assert (out / name).is_file(), name
+    numbers = json.loads((out / "result.json").read_text())
+    model = lpvid.LpvModel.load(out / "model.json")
+    assert lpvid.LpvModel.load(out / "model.mat") == model
+    ds = lpvid.datasets.gantry()
+    # the numbers in the report are those of the model written
+    assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, ds.identification), rel=1e-12)
+    assert numbers["validation_vnls"] == pytest.approx(lpvid.vnls(model, ds.validation), rel=1e-12)
+    assert numbers["groups_chosen"] == model.group_norms().count()
+    report = (out / "report.md").read_text()
+    assert f"{numbers['vnls']:.6g}" in report
+    assert f"{numbers['groups_chosen']} groups kept" in report
+
+
+def test_demo_model_is_accurate_and_simpler(demo):
+    _, out = demo
+    n = json.loads((out / "result.json").read_text())
+    assert abs(n["vnls"] / n["noise_floor"] - 1) <= 0.1
+    assert n["validation_vnls"] <= 1.25 * n["validation_vnls_unregularised"]
+    assert n["groups_chosen"] < n["groups_smile"]
+
+
+def test_identify_result_is_consistent(gantry_result):
+    ds, res = gantry_result
+    assert res.model is res.entries[res.chosen].model
+    assert res.entries[0].gamma == 0 and len(res.entries) == 1 + len(res.path)
+    for e in res.entries:
+        assert e.vnls == pytest.approx(lpvid.vnls(e.model, ds.identification), rel=1e-12)
+        assert e.validation_vnls == pytest.approx(lpvid.vnls(e.model, ds.validation), rel=1e-12)
+        assert e.n_groups == e.model.group_norms().count()
+    # the choice: the simplest within the tolerance of the best validation V_NLS
+    vals = np.array([e.validation_vnls for e in res.entries])
+    ok = [e for e in res.entries if e.validation_vnls <= 1.1 * vals.min()]
+    assert res.entry.n_groups == min(e.n_groups for e in ok)
+    assert "validation" in res.reason
+    # the start: the SMILE form whose refined model validated best
+    best = min(res.candidates, key=lambda c: c.validation_vnls)
+    assert best.name == "smile:" + res.initial.info["form"]
+    assert set(res.timings) >= {"local_s", "smile_s", "path_s", "total_s"}
+    assert str(res.entry.n_groups) in res.summary() and "->" in res.table()
+
+
+def test_identify_without_validation_takes_the_knee(gantry_result):
+    ds, _ = gantry_result
+    res = lpvid.identify(ds.identification, ds.order, ds.basis, gammas=[0.1, 0.01, 0.001])
+    assert "knee" in res.reason or "noise" in res.reason
+    assert res.validation is None and res.entry.validation_vnls is None
+    # the chosen model fits the identification data at the noise floor
+    assert res.entry.vnls <= 1.1 * res.entry.noise_floor
+
+
+def test_identify_bad_input(gantry_result):
+    ds, _ = gantry_result
+    data = ds.identification
+    with pytest.raises(TypeError, match="basis"):
+        lpvid.identify(data, 6, "poly")
+    with pytest.raises(ValueError, match="order"):
+        lpvid.identify(data, 0, ds.basis)
+    with pytest.raises(ValueError, match="basis"):
+        lpvid.identify(data, 6, lpvid.Polynomial(5, domain=(24, 48)))
+    with pytest.raises(ValueError, match="gammas"):
+        lpvid.identify(data, 6, ds.basis, gammas=[0.1, -1])
+    with pytest.raises(ValueError, match="validation"):
+        stage = lpvid.datasets.positioning_stage()
+        lpvid.identify(data, 6, ds.basis, validation=stage.validation)
+
+
+def test_report_without_figures(tmp_path, gantry_result):
+    _, res = gantry_result
+    path = lpvid.report.write_report(res, tmp_path, figures=False)
+    text = path.read_text()
+    assert "## Figures" not in text
+    assert res.table() in text
+    assert str(res.initial.group_norms()) in text
+
+
+@pytest.fixture(scope="module")
+def small_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("data")
+    ds = lpvid.datasets.gantry(n_lines=80)
+    ds.identification.save(folder / "id.npz")
+    ds.validation.save(folder / "val.mat")
+    return folder
+
+
+def test_fit_command_end_to_end(small_files, capsys):
+    out = small_files / "fit"
+    args = [str(small_files / "id.npz"), "--order", "6", "--basis", "poly:4"]
+    args += ["--validation", str(small_files / "val.mat"), "--gamma", "0.1", "0.01"]
+    code = main(["fit", *args, "--out", str(out), "--no-figures"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    numbers = json.loads((out / "result.json").read_text())
+    assert len(numbers["path"]) == 3
+    model = lpvid.LpvModel.load(out / "model.json")
+    data = lpvid.FrfData.load(small_files / "id.npz")
+    assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, data), rel=1e-12)
+    assert f"{numbers['vnls']:.6g}" in printed
+    assert model.basis == lpvid.Polynomial(4, domain=data.p_range)
+
+
+@pytest.mark.parametrize(
+    "argv, pattern",
+    [
+        (["fit"], "required"),
+        (["fit", "missing.npz", "--order", "6", "--out", "x"], "no such file"),
+        (["fit", "{id}", "--order", "6", "--basis", "cubic", "--out", "x"], "--basis"),
+        (["fit", "{id}", "--order", "0", "--out", "x"], "--order"),
+        (["fit", "{id}", "--order", "six", "--out", "x"], "--order"),
+        (["fit", "{id}", "--order", "6", "--fix", "E", "--out", "x"], "--fix"),
+        (["fit", "{id}", "--order", "999", "--out", "x"], "order"),
+        (["demo", "--data", "nope"], "--data"),
+        (["frobnicate"], "invalid choice"),
+    ],
+)
+def test_cli_misuse_is_one_line_and_exit_code_2(small_files, capsys, argv, pattern, tmp_path):
+    argv = [a.replace("{id}", str(small_files / "id.npz")) for a in argv]
+    argv = [str(tmp_path / "x") if a == "x" else a for a in argv]
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert re.search(re.escape(pattern), err), err
+
+
+def test_fit_help_speaks_to_engineers(capsys):
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    text = capsys.readouterr().out
+    for word in ("--order", "--basis", "--validation", "scheduling", "gamma", "sigma"):
+        assert word in text
