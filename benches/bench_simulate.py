@@ -18,9 +18,9 @@ Run: python benches/bench_simulate.py [--repeat 20] [--samples 1000000]
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+from bench_core import median_time
 
 import lpvid
 from lpvid import _core
@@ -40,17 +40,6 @@ def gantry_size_model(seed: int = 0) -> lpvid.LpvModel:
         lpvid.Polynomial(nb, domain=(24.0, 48.0)),
         Ts=1e-3,
     )
-
-
-def median_time(fn, repeat: int) -> float:
-    """Median wall time of ``fn()`` in seconds, after a warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
 
 
 def main() -> None:

@@ -4,28 +4,16 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use lpvid::simulate::{simulate, simulate_zoh};
+use lpvid::testing::Lcg;
 use lpvid::{FreeSet, FrfData, Problem, Shape};
 use num_complex::Complex64 as C64;
 use std::hint::black_box;
-
-/// A deterministic pseudo-random generator (no extra dependency).
-struct Lcg(u64);
-
-impl Lcg {
-    fn uniform(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
-    }
-}
 
 /// A gantry-size problem with a stable random model and its own FRF as data.
 pub fn gantry_problem() -> (Problem, Vec<f64>) {
     let shape = Shape::new(6, 1, 2, 4).expect("shape");
     let mut rng = Lcg(7);
-    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.uniform()).collect();
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.next_f64()).collect();
     // A(0) = 0.5 I keeps every frozen model stable.
     let a0 = shape.block(lpvid::Matrix::A, 0);
     for k in 0..shape.n {
@@ -47,7 +35,7 @@ pub fn gantry_problem() -> (Problem, Vec<f64>) {
         .collect();
     let len = n_points * n_lines * 2;
     let g: Vec<C64> = (0..len)
-        .map(|_| C64::new(rng.uniform(), rng.uniform()))
+        .map(|_| C64::new(rng.next_f64(), rng.next_f64()))
         .collect();
     let data = FrfData::new(n_points, 2, 1, z, g, &vec![0.1; len]).expect("data");
     (Problem::new(shape, data, &basis).expect("problem"), theta)
@@ -121,7 +109,7 @@ fn bench_steps(c: &mut Criterion) {
 pub fn simulation_problem(t_len: usize) -> (Shape, Vec<f64>, Vec<f64>, Vec<f64>) {
     let shape = Shape::new(6, 1, 2, 4).expect("shape");
     let mut rng = Lcg(11);
-    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.uniform()).collect();
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.1 * rng.next_f64()).collect();
     let a0 = shape.block(lpvid::Matrix::A, 0);
     for k in 0..shape.n {
         theta[a0.start + k * (shape.n + 1)] += 0.5;
@@ -132,7 +120,7 @@ pub fn simulation_problem(t_len: usize) -> (Shape, Vec<f64>, Vec<f64>, Vec<f64>)
             (1..=4).map(move |i| s.powi(i))
         })
         .collect();
-    let u: Vec<f64> = (0..t_len).map(|_| rng.uniform()).collect();
+    let u: Vec<f64> = (0..t_len).map(|_| rng.next_f64()).collect();
     (shape, theta, basis, u)
 }
 

@@ -20,6 +20,8 @@ pub mod problem;
 pub mod response;
 pub mod simulate;
 pub mod socp;
+#[doc(hidden)]
+pub mod testing;
 
 #[cfg(feature = "python")]
 mod python;

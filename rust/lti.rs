@@ -340,13 +340,8 @@ mod tests {
 
     fn model(n: usize, r: usize, l: usize, seed: u64) -> (Shape, Frozen) {
         let shape = Shape::new(n, r, l, 0).unwrap();
-        let mut s = seed;
-        let mut rnd = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
-        };
+        let mut rng = crate::testing::Lcg(seed);
+        let mut rnd = || rng.next_f64();
         let m = Frozen {
             a: (0..n * n).map(|_| rnd()).collect(),
             b: (0..n * r).map(|_| rnd()).collect(),

@@ -817,23 +817,12 @@ fn solve_in_place(s: usize, a: &mut [f64], b: &mut [f64]) -> bool {
 mod tests {
     use super::*;
     use crate::lti::Frozen;
-
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> f64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
-        }
-    }
+    use crate::testing::Lcg;
 
     fn model(n: usize, r: usize, l: usize, nb: usize, a0: f64) -> (Shape, Vec<f64>) {
         let shape = Shape::new(n, r, l, nb).unwrap();
         let mut rng = Lcg(3 + n as u64);
-        let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.4 * rng.next()).collect();
+        let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.4 * rng.next_f64()).collect();
         let blk = shape.block(Matrix::A, 0);
         for k in 0..n {
             theta[blk.start + k * (n + 1)] += a0;
@@ -902,9 +891,9 @@ mod tests {
         ] {
             let (shape, theta) = model(n, r, l, nb, 0.5 / (1.0 + n as f64 / 8.0));
             let mut rng = Lcg(99);
-            let basis: Vec<f64> = (0..t_len * nb).map(|_| rng.next()).collect();
-            let u: Vec<f64> = (0..t_len * r).map(|_| rng.next()).collect();
-            let x0: Vec<f64> = (0..n).map(|_| rng.next()).collect();
+            let basis: Vec<f64> = (0..t_len * nb).map(|_| rng.next_f64()).collect();
+            let u: Vec<f64> = (0..t_len * r).map(|_| rng.next_f64()).collect();
+            let x0: Vec<f64> = (0..n).map(|_| rng.next_f64()).collect();
             let (y, x) = naive(&shape, &theta, &basis, &u, &x0);
             let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
             let with = simulate(&shape, &theta, &basis, &u, &x0, true).unwrap();
@@ -921,9 +910,9 @@ mod tests {
         let (shape, theta) = model(6, 1, 2, 4, 0.5);
         let t_len = 200;
         let mut rng = Lcg(5);
-        let basis: Vec<f64> = (0..t_len * 4).map(|_| rng.next()).collect();
-        let u: Vec<f64> = (0..t_len).map(|_| rng.next()).collect();
-        let x0: Vec<f64> = (0..6).map(|_| rng.next()).collect();
+        let basis: Vec<f64> = (0..t_len * 4).map(|_| rng.next_f64()).collect();
+        let u: Vec<f64> = (0..t_len).map(|_| rng.next_f64()).collect();
+        let x0: Vec<f64> = (0..6).map(|_| rng.next_f64()).collect();
         let (y, _) = naive(&shape, &theta, &basis, &u, &x0);
         let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
         let lanes = Lanes::<2>::new(&shape, &theta);

@@ -1,25 +1,14 @@
 //! The analytic gradient and Gauss-Newton matrix of the core against central
 //! finite differences of the residual, on small random problems.
 
+use lpvid::testing::Lcg;
 use lpvid::{FreeSet, FrfData, Matrix, Problem, Shape};
 use num_complex::Complex64 as C64;
-
-struct Lcg(u64);
-
-impl Lcg {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
-    }
-}
 
 fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
     let shape = Shape::new(n, r, l, nb).unwrap();
     let mut rng = Lcg(42 + n as u64);
-    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next()).collect();
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
     let a0 = shape.block(Matrix::A, 0);
     for k in 0..n {
         theta[a0.start + k * (n + 1)] += if discrete { 0.2 } else { -1.5 };
@@ -43,8 +32,10 @@ fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem,
         })
         .collect();
     let len = n_points * lines * l * r;
-    let g: Vec<C64> = (0..len).map(|_| C64::new(rng.next(), rng.next())).collect();
-    let sigma: Vec<f64> = (0..len).map(|_| 0.5 + rng.next()).collect();
+    let g: Vec<C64> = (0..len)
+        .map(|_| C64::new(rng.next_f64(), rng.next_f64()))
+        .collect();
+    let sigma: Vec<f64> = (0..len).map(|_| 0.5 + rng.next_f64()).collect();
     let data = FrfData::new(n_points, l, r, z, g, &sigma).unwrap();
     (Problem::new(shape, data, &basis).unwrap(), theta)
 }

@@ -46,6 +46,24 @@ impl Monitor for PyMonitor {
     }
 }
 
+/// Run a fit with the GIL released and a monitor for the callback; an
+/// exception the callback raised is raised again afterwards.
+fn with_monitor<T: Send>(
+    py: Python<'_>,
+    callback: Option<Py<PyAny>>,
+    run: impl FnOnce(&mut PyMonitor) -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    let mut monitor = PyMonitor {
+        callback,
+        error: None,
+    };
+    let out = py.detach(|| run(&mut monitor))?;
+    match monitor.error {
+        Some(e) => Err(e),
+        None => Ok(out),
+    }
+}
+
 fn iteration_dict<'py>(py: Python<'py>, it: &Iteration) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let kind = match it.kind {
@@ -209,17 +227,10 @@ fn fit_nls_py<'py>(
     let theta = real_vec(&theta);
     let free = free_set(problem, free)?;
     let settings = lm_settings(settings)?;
-    let mut monitor = PyMonitor {
-        callback,
-        error: None,
-    };
-    let fit = py.detach(|| {
+    let fit = with_monitor(py, callback, |monitor| {
         problem.inner.shape().check_theta(&theta)?;
-        levenberg_marquardt(&problem.inner, &theta, &free, &settings, &mut monitor)
+        levenberg_marquardt(&problem.inner, &theta, &free, &settings, monitor)
     })?;
-    if let Some(e) = monitor.error {
-        return Err(e);
-    }
     fit_dict(py, fit)
 }
 
@@ -239,15 +250,9 @@ fn fit_l21_py<'py>(
     let sup = real_vec(&sup_norms);
     let free = free_set(problem, free)?;
     let settings = l21_settings(settings)?;
-    let mut monitor = PyMonitor {
-        callback,
-        error: None,
-    };
-    let fit =
-        py.detach(|| fit_l21(&problem.inner, &theta, &free, &sup, &settings, &mut monitor))?;
-    if let Some(e) = monitor.error {
-        return Err(e);
-    }
+    let fit = with_monitor(py, callback, |monitor| {
+        fit_l21(&problem.inner, &theta, &free, &sup, &settings, monitor)
+    })?;
     fit_dict(py, fit)
 }
 
@@ -270,11 +275,7 @@ fn l21_path_py<'py>(
     let gammas = real_vec(&gammas);
     let free = free_set(problem, free)?;
     let settings = l21_settings(settings)?;
-    let mut monitor = PyMonitor {
-        callback,
-        error: None,
-    };
-    let fits = py.detach(|| {
+    let fits = with_monitor(py, callback, |monitor| {
         l21_path(
             &problem.inner,
             &theta,
@@ -282,12 +283,9 @@ fn l21_path_py<'py>(
             &sup,
             &gammas,
             &settings,
-            &mut monitor,
+            monitor,
         )
     })?;
-    if let Some(e) = monitor.error {
-        return Err(e);
-    }
     let out = PyList::empty(py);
     for (gamma, fit) in fits {
         out.append((gamma, fit_dict(py, fit)?))?;
