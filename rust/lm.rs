@@ -146,20 +146,24 @@ pub fn levenberg_marquardt(
             step_norm = norm(&d);
             let trial = free.add_step(&theta, &d);
             predicted = predicted_decrease(&gn, &d);
-            // A singular frozen model at the trial point is a rejected step.
-            if let Ok(v) = problem.cost(&trial) {
+            // Most steps are taken (the damping follows the gain ratio), so
+            // the Jacobian at the trial point is evaluated with its V_NLS
+            // rather than after it. A singular frozen model at the trial
+            // point is a rejected step.
+            if let Ok(cand) = problem.gauss_newton(&trial, free) {
+                let v = cand.vnls;
                 rho = (gn.vnls - v) / predicted;
                 if v.is_finite() && v < gn.vnls && predicted > 0.0 {
                     accepted = true;
-                    new_theta = Some(trial);
+                    new_theta = Some((trial, cand));
                 }
             }
         }
         damping.update(if accepted { rho } else { -1.0 });
         let old_vnls = gn.vnls;
         let theta_norm = norm(&free.gather(&theta));
-        if let Some(trial) = new_theta {
-            gn = problem.gauss_newton(&trial, free)?;
+        if let Some((trial, cand)) = new_theta {
+            gn = cand;
             theta = trial;
             diag = marquardt_diagonal(&gn);
         }
