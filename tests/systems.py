@@ -81,3 +81,30 @@ def close_modes(s: float, gap_hz: float = 0.3) -> Ss:
         [np.array([[1.0, 0.0], [0.2, 0.5]]), np.array([[0.3, 1.0], [-0.6, 0.4 * (1 + s)]])],
         np.zeros((2, 2)),
     )
+
+
+#: Modes of :func:`heavily_damped`: natural frequencies (Hz) and damping ratios at s = 0 and 1.
+DAMPED_FREQS = (6.6, 17.0, 45.0)
+DAMPED_ZETA0 = (0.32, 0.47, 0.45)
+DAMPED_ZETA1 = (0.39, 0.78, 0.88)
+
+
+def heavily_damped(s: float) -> Ss:
+    """Three heavily damped modes whose damping grows strongly with s in [0, 1] (SISO).
+
+    Continuous time, 6 states, real modal blocks ``[[sigma, wd], [-wd, sigma]]``
+    whose ``sigma`` and ``wd`` move linearly in s between the values of
+    natural frequencies 6.6, 17 and 45 Hz with damping ratios 0.32, 0.47, 0.45
+    (s = 0) and 0.39, 0.78, 0.88 (s = 1): the system is exactly affine in s
+    (an LPV model with ``Polynomial(1)`` contains it). B and C are constant.
+    """
+    blocks = []
+    for f, z0, z1 in zip(DAMPED_FREQS, DAMPED_ZETA0, DAMPED_ZETA1, strict=True):
+        w = 2 * np.pi * f
+        sig0, wd0 = -z0 * w, w * np.sqrt(1 - z0**2)
+        sig1, wd1 = -z1 * w, w * np.sqrt(1 - z1**2)
+        sig, wd = sig0 + (sig1 - sig0) * s, wd0 + (wd1 - wd0) * s
+        blocks.append(np.array([[sig, wd], [-wd, sig]]))
+    B = np.array([[0.36], [-0.66], [-0.62], [0.44], [-0.2], [-0.04]])
+    C = np.array([[-2.5, -2.7, 0.34, 0.33, 1.4, 0.72]])
+    return block_diag(*blocks), B, C, np.zeros((1, 1))

@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, report
+from lpvid import datasets, report, robust
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -19,6 +19,7 @@ from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
+from lpvid.robust import Consistency, consistency, global_start, initial_candidates
 from lpvid.smile import smile, smile_candidates
 from lpvid.subspace import fd_subspace
 
@@ -26,6 +27,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Basis",
+    "Consistency",
     "CustomBasis",
     "FitResult",
     "FrfData",
@@ -41,6 +43,10 @@ __all__ = [
     "SingularModelError",
     "datasets",
     "report",
+    "robust",
+    "consistency",
+    "global_start",
+    "initial_candidates",
     "estimate_frf",
     "fd_subspace",
     "fit_l21",

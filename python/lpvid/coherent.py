@@ -185,17 +185,21 @@ def krylov_form(models: Sequence[Ss], kind: str) -> tuple[list[Ss], dict[str, fl
     return out, {"condition": float(worst[ref]), "reference": ref}
 
 
-def propagation_order(p: Arr) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
+def propagation_order(p: Arr, root: int | None = None) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
     """Visit order and parents of the points along a minimum spanning tree.
 
     The points are joined by the minimum spanning tree of their distances in
     the scheduling space (each parameter scaled to [0, 1]); the tree is
-    walked breadth first from the point nearest the centre. In one dimension
-    this is the chain of sorted points walked outwards from the middle.
+    walked breadth first from ``root``, by default the point nearest the
+    centre. In one dimension this is the chain of sorted points walked
+    outwards from the root.
 
     Parameters
     ----------
     p : ndarray, shape (N, Np)
+    root : int, optional
+        The point to start from (default: the one whose farthest point is
+        nearest).
 
     Returns
     -------
@@ -209,7 +213,10 @@ def propagation_order(p: Arr) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
     span = np.ptp(p, axis=0)
     s = (p - p.min(axis=0)) / np.where(span > 0, span, 1.0)
     dist = np.linalg.norm(s[:, None, :] - s[None, :, :], axis=2)
-    root = int(np.argmin(np.max(dist, axis=1)))
+    if root is None:
+        root = int(np.argmin(np.max(dist, axis=1)))
+    elif not 0 <= root < N:
+        raise ValueError(f"root: expected a point index in 0..{N - 1}, got {root}")
     if N == 1:
         return np.array([0]), np.array([-1])
     # Strictly positive weights: the sparse tree drops zero entries.

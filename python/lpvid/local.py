@@ -51,13 +51,20 @@ class LocalModels(Sequence[LpvModel]):
         Whether the refinement of each model converged.
     initial : sequence of LpvModel, optional
         The subspace estimates the refinement started from.
+    starts : sequence of str, optional
+        Per point, which start the kept model came from: ``"plain"`` (the
+        subspace estimates, the default) or ``"continuation from q"``
+        (:func:`lpvid.robust.continue_local`).
 
     Attributes
     ----------
-    p, freqs_hz, vnls, noise_floor, converged, initial
+    p, freqs_hz, vnls, noise_floor, converged, initial, starts
         As given.
     unstable : ndarray of bool
         True for a model with a pole outside the stability region.
+    consistency : lpvid.robust.Consistency or None
+        The diagnosis of the plain local models, when continuation was
+        considered (see :func:`identify_lti`).
 
     """
 
@@ -70,6 +77,7 @@ class LocalModels(Sequence[LpvModel]):
         noise_floor: ArrayLike | None = None,
         converged: ArrayLike | None = None,
         initial: Sequence[LpvModel] | None = None,
+        starts: Sequence[str] | None = None,
     ) -> None:
         self._models = tuple(models)
         for k, m in enumerate(self._models):
@@ -90,6 +98,11 @@ class LocalModels(Sequence[LpvModel]):
         )
         self.unstable: NDArray[np.bool_] = np.array([not is_stable(m) for m in self._models])
         self.initial = None if initial is None else tuple(initial)
+        self.starts: tuple[str, ...] = ("plain",) * N if starts is None else tuple(starts)
+        if len(self.starts) != N:
+            raise ValueError(f"starts: expected one label per model ({N}), got {len(self.starts)}")
+        #: The diagnosis of :func:`lpvid.robust.consistency`, when it was run.
+        self.consistency: Any = None
         for arr in (self.p, self.vnls, self.noise_floor, self.converged, self.unstable):
             if arr.shape[0] != N:
                 raise ValueError(f"expected one value per model ({N}), got shape {arr.shape}")
@@ -119,15 +132,15 @@ class LocalModels(Sequence[LpvModel]):
         return self._models[0].n_states
 
     def table(self) -> str:
-        """One line per point: p, V_NLS, noise floor, their ratio, stability."""
-        lines = ["  q  p                     V_NLS   floor   ratio  stable"]
+        """One line per point: p, V_NLS, noise floor, their ratio, stability, start."""
+        lines = ["  q  p                     V_NLS   floor   ratio  stable  start"]
         for q in range(len(self)):
             pq = np.atleast_1d(self.p[q])
             ps = ", ".join(f"{v:.4g}" for v in pq)
             ratio = self.vnls[q] / self.noise_floor[q] if self.noise_floor[q] else np.nan
             lines.append(
                 f"{q:3d}  {ps:<18s} {self.vnls[q]:9.4g} {self.noise_floor[q]:7d} {ratio:7.3f}"
-                f"  {'no' if self.unstable[q] else 'yes'}"
+                f"  {'no' if self.unstable[q] else 'yes':6s}  {self.starts[q]}"
             )
         return "\n".join(lines)
 
@@ -146,6 +159,7 @@ def identify_lti(
     refine: bool = True,
     n_rows: int | None = None,
     max_iter: int = 100,
+    continuation: bool | str = False,
 ) -> LocalModels:
     """Identify one LTI state-space model per scheduling point from its FRF.
 
@@ -176,6 +190,12 @@ def identify_lti(
         default: try 3n, 2n and n + 1.
     max_iter : int
         Most Levenberg-Marquardt steps per point.
+    continuation : bool or "auto"
+        After the plain identification, walk from the best-determined point
+        outwards and refine each point's model from its neighbour's
+        (:func:`lpvid.robust.continue_local`), so that the models stay on
+        one branch: always (True), never (False, the default), or when
+        :func:`lpvid.robust.consistency` flags a point (``"auto"``).
 
     Returns
     -------
@@ -183,7 +203,10 @@ def identify_lti(
         The models with per-point V_NLS, noise floor (``F l r``), unstable
         flags, the subspace estimates the kept models started from
         (``.initial``) and ``p``. Each model's ``info`` says which start it
-        came from (``n_rows``, ``balanced_start``) and how many steps it took.
+        came from (``n_rows``, ``balanced_start``) and how many steps it took;
+        ``.starts`` says per point whether the plain or the continuation
+        start was kept, and ``.consistency`` holds the diagnosis of the plain
+        models when continuation was considered.
 
     Raises
     ------
@@ -203,6 +226,8 @@ def identify_lti(
             f"{r} inputs allow at most order {limit})"
         )
     max_iter = positive_int(max_iter, "max_iter")
+    if continuation not in (True, False, "auto"):
+        raise ValueError(f"continuation: expected True, False or 'auto', got {continuation!r}")
     rows = _row_choices(n, F, r, n_rows)
     basis = Polynomial(0, n_params=data.n_params)
     fixed = {"D": True} if strictly_proper else None
@@ -223,7 +248,16 @@ def identify_lti(
         conv.append(ok)
         initial.append(start)
     floor = np.full(data.n_points, F * l * r)
-    return LocalModels(models, data.p, data.freqs_hz, costs, floor, conv, initial)
+    plain = LocalModels(models, data.p, data.freqs_hz, costs, floor, conv, initial)
+    if continuation is False or data.n_points < 2:
+        return plain
+    from lpvid.robust import consistency, continue_local
+
+    diagnosis = consistency(plain)
+    if continuation == "auto" and diagnosis.ok:
+        plain.consistency = diagnosis
+        return plain
+    return continue_local(data, plain, strictly_proper=strictly_proper, max_iter=max_iter)
 
 
 def _row_choices(n: int, n_lines: int, n_inputs: int, n_rows: int | None) -> list[int | None]:
