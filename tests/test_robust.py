@@ -303,6 +303,7 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
         assert np.isclose(c.vnls, lpvid.vnls(c.model, data))
         assert np.isclose(c.validation_vnls, lpvid.vnls(c.model, val))
         assert c.noise_floor == M and c.validation_floor == Mv and c.seconds >= 0
+        assert c.fit is not None and np.isclose(c.fit.vnls, c.vnls) and c.fit.model is c.model
     chosen, reason = robust.choose(cands)
     assert not chosen.name.startswith("smile:")
     assert chosen.vnls < 1.1 * M  # within 10 % of the noise floor

@@ -226,8 +226,10 @@ def identify_lti(
             f"{r} inputs allow at most order {limit})"
         )
     max_iter = positive_int(max_iter, "max_iter")
-    if continuation not in (True, False, "auto"):
+    if not (isinstance(continuation, bool) or continuation == "auto"):
         raise ValueError(f"continuation: expected True, False or 'auto', got {continuation!r}")
+    if continuation is not False and not refine:
+        raise ValueError("continuation: a continuation refines the models; it needs refine=True")
     rows = _row_choices(n, F, r, n_rows)
     basis = Polynomial(0, n_params=data.n_params)
     fixed = {"D": True} if strictly_proper else None

@@ -22,7 +22,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -35,6 +35,10 @@ from lpvid.cost import check_compatible, vnls
 from lpvid.data import FrfData
 from lpvid.layout import fixed_mask
 from lpvid.model import LpvModel
+from lpvid.results import FitResult
+
+if TYPE_CHECKING:
+    from lpvid.local import LocalModels
 
 __all__ = [
     "Candidate",
@@ -117,11 +121,18 @@ def _neighbours(s: Arr, k: int) -> list[tuple[int, int]]:
     return sorted(pairs)
 
 
+def _is_real(u: NDArray[np.complex128]) -> NDArray[np.bool_]:
+    """Which poles (in log(-s) coordinates) are real: angle exactly 0 or pi."""
+    return (u.imag == 0.0) | (u.imag == np.pi)
+
+
 def _describe_pole(u: complex) -> str:
-    """A pole in log(-s) coordinates as 'f Hz, zeta z' or 'f Hz real'."""
+    """A pole in log(-s) coordinates as 'f Hz zeta z' or 'f Hz real'."""
     f = float(np.exp(u.real)) / (2 * np.pi)
     if u.imag == 0.0:
         return f"{f:.4g} Hz real"
+    if u.imag == np.pi:
+        return f"{f:.4g} Hz real unstable"
     return f"{f:.4g} Hz zeta {np.cos(abs(u.imag)):.2f}"
 
 
@@ -297,7 +308,7 @@ def consistency(
     scores = low / ref if ref > 0 else np.where(low > 0, np.inf, 1.0)
     # Real poles per model: a pair that splits into two real poles at one
     # point only is a change of structure whatever the distances say.
-    n_real = np.array([int(np.sum(c.imag == 0.0)) for c in coords])
+    n_real = np.array([int(np.sum(_is_real(c))) for c in coords])
     near: dict[int, set[int]] = {q: set() for q in range(N)}
     for a, b, _, _ in pairs:
         near[a].add(b)
@@ -332,10 +343,14 @@ def pole_uncertainty(model: LpvModel, data: FrfData, fixed: Any = None) -> NDArr
     """Standard deviation of every pole of an LTI model in ``log(-s)`` units.
 
     First-order propagation of the parameter covariance ``(J^T J)^+ / 2``
-    (the pseudo-inverse drops the similarity directions, which do not move
-    the poles) through the pole sensitivities ``d lambda_i / d A_ab = W_ia
-    V_bi`` (``V`` the right eigenvectors of A, ``W = V^-1``). 0.1 means the
-    pole's frequency (or its damping angle) is known to about 10 %.
+    (each real residual of V_NLS has variance 1/2) through the pole
+    sensitivities ``d lambda_i / d A_ab = W_ia V_bi`` (``V`` the right
+    eigenvectors of A, ``W = V^-1``). ``J^T J`` is singular along the
+    similarity transforms, which move no pole; the pseudo-inverse is taken
+    exactly on their complement (a cut-off on small singular values would
+    also drop the poorly determined directions this is meant to measure).
+    0.1 means the pole's frequency (or its damping angle) is known to about
+    10 %. Valid near a minimum of V_NLS, where the model fits within the noise.
 
     Parameters
     ----------
@@ -370,12 +385,21 @@ def pole_uncertainty(model: LpvModel, data: FrfData, fixed: Any = None) -> NDArr
             X = np.zeros((n, n))
             X[a, b] = 1.0
             dm = [X @ A - A @ X, X @ B, -C @ X, np.zeros_like(model.D[0])]
-            tangent.append(np.concatenate([x.ravel(order="F") for x in dm])[free])
+            tangent.append(np.concatenate([x.ravel(order="F") for x in dm]))
     T = np.array(tangent).T
+    if np.any(~free):
+        # Only the transforms that leave the fixed parameters alone remain.
+        _, sv, vt = np.linalg.svd(T[~free])
+        rank = int(np.sum(sv > 1e-10 * max(float(sv[0]) if sv.size else 0.0, 1e-300)))
+        T = T @ vt[rank:].T
+    T = T[free]
     d = np.sqrt(np.maximum(np.diag(jtj), 1e-300))
     H = jtj / d[:, None] / d[None, :]
-    S, sv, _ = np.linalg.svd(T * d[:, None], full_matrices=False)
-    S = S[:, sv > 1e-10 * sv[0]]
+    if T.shape[1]:
+        S, sv, _ = np.linalg.svd(T * d[:, None], full_matrices=False)
+        S = S[:, sv > 1e-10 * sv[0]]
+    else:
+        S = np.zeros((H.shape[0], 0))
     lam, V = np.linalg.eig(A)
     W = np.linalg.inv(V)
     # theta_A is vec(A) column-major: index a + b n for A[a, b].
@@ -392,7 +416,7 @@ def pole_uncertainty(model: LpvModel, data: FrfData, fixed: Any = None) -> NDArr
 
 
 def best_determined(
-    local_models: Any,
+    local_models: LocalModels,
     data: FrfData,
     diagnosis: Consistency | None = None,
     fixed: Any = None,
@@ -466,13 +490,13 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
 
 def continue_local(
     data: FrfData,
-    local: Any,
+    local: LocalModels,
     *,
     root: int | None = None,
     strictly_proper: bool = False,
     tolerance: float = 1.0,
     max_iter: int = 100,
-) -> Any:
+) -> LocalModels:
     """Local models by continuation along the scheduling axes.
 
     Starting from the best-determined point (:func:`best_determined`), each
@@ -558,6 +582,7 @@ def continue_local(
         fit = fit_nls(start, point, fixed, max_iter=max_iter, callback=stop)
         cont = LpvModel(
             *fit.model.matrices().values(),
+            basis=start.basis,
             Ts=data.Ts,
             info={
                 "method": "continuation + fit_nls",
@@ -584,8 +609,15 @@ def continue_local(
             starts[q] = f"continuation from {m}"
             initial[q] = start
     out = LocalModels(
-        models, data.p, data.freqs_hz, costs, local.noise_floor, conv, initial, starts=starts
-    )  # type: ignore[arg-type]
+        models,  # type: ignore[arg-type]
+        data.p,
+        data.freqs_hz,
+        costs,
+        local.noise_floor,
+        conv,
+        initial,
+        starts=starts,
+    )
     out.consistency = diag
     return out
 
@@ -614,7 +646,7 @@ def global_start(
     basis: Basis,
     fixed: Any = None,
     *,
-    local: Any = None,
+    local: LocalModels | None = None,
     point: int | None = None,
     stages: str = "all",
     max_iter: int = 100,
@@ -661,6 +693,30 @@ def global_start(
         steps taken).
 
     """
+    return _global_start(
+        data,
+        order,
+        basis,
+        fixed,
+        local=local,
+        point=point,
+        stages=stages,
+        max_iter=max_iter,
+    )[0]
+
+
+def _global_start(
+    data: FrfData,
+    order: int,
+    basis: Basis,
+    fixed: Any = None,
+    *,
+    local: LocalModels | None = None,
+    point: int | None = None,
+    stages: str = "all",
+    max_iter: int = 100,
+) -> tuple[LpvModel, FitResult]:
+    """:func:`global_start`, also returning the last fit."""
     from lpvid.fit import fit_nls
     from lpvid.local import identify_lti
     from lpvid.smile import _p_range
@@ -718,7 +774,7 @@ def global_start(
             "history": history,
         }
     )
-    return model
+    return model, fit
 
 
 # ----------------------------------------------------------------------------- candidates
@@ -799,8 +855,10 @@ class Candidate:
         Time spent on this candidate (building the start and the fit; the
         local models, shared by several candidates, are not counted).
     constant_groups : int
-        Groups (of 4 Nb) whose relative magnitude is below 1e-6 in the
-        refined model: a measure of simplicity.
+        Groups (of 4 Nb) that the start left constant (relative magnitude
+        below 1e-6; ``info["constant_groups"]`` of a SMILE model): the
+        simplicity the start offers the l2,1 path. 0 for a global start,
+        whose last stage frees every group.
     stable : bool
         Whether the frozen models are stable at the identification points
         and at 7 values between every two neighbouring points
@@ -809,6 +867,8 @@ class Candidate:
         usually interpolating mismatched local models.
     note : str
         What was done, in words.
+    fit : FitResult or None
+        The last :func:`lpvid.fit_nls` run (its history and timings).
     """
 
     name: str
@@ -821,6 +881,7 @@ class Candidate:
     constant_groups: int
     stable: bool = True
     note: str = ""
+    fit: FitResult | None = None
 
     @property
     def ratio(self) -> float:
@@ -849,23 +910,27 @@ def _candidate(
     fixed: Any,
     t0: float,
     note: str,
-    refine: bool = True,
+    fit: FitResult | None = None,
     max_iter: int = 100,
 ) -> Candidate:
+    """Refine ``start`` by fit_nls (unless its ``fit`` is given) and evaluate it."""
     from lpvid.fit import fit_nls
 
-    if refine:
+    if fit is None:
         fit = fit_nls(start, data, fixed, max_iter=max_iter)
-        model, v = fit.model, float(fit.vnls)
-        model.info.update(start.info)
+    model = fit.model
+    model.info.update(start.info)
+    nb = start.n_basis
+    if "constant_groups" in start.info:
+        const = int(start.info["constant_groups"])
+    elif nb and start.p_range is not None:
+        const = 4 * nb - start.group_norms().count(1e-6)
     else:
-        model, v = start, vnls(start, data)
-    nb = model.n_basis
-    const = 4 * nb - model.group_norms().count(1e-6) if nb and model.p_range is not None else 0
+        const = 0
     return Candidate(
         name=name,
         model=model,
-        vnls=v,
+        vnls=float(fit.vnls),
         noise_floor=data.n_residuals,
         validation_vnls=None if validation is None else vnls(model, validation),
         validation_floor=None if validation is None else validation.n_residuals,
@@ -873,6 +938,7 @@ def _candidate(
         constant_groups=int(const),
         stable=frozen_stable(model, between_points(data.p)),
         note=note,
+        fit=fit,
     )
 
 
@@ -885,7 +951,7 @@ def initial_candidates(
     routes: Sequence[str] = ROUTES,
     *,
     forms: Sequence[str] | None = None,
-    local: Any = None,
+    local: LocalModels | None = None,
     max_iter: int = 100,
 ) -> list[Candidate]:
     """Initial LPV models by several routes, each refined by :func:`lpvid.fit_nls`.
@@ -993,7 +1059,7 @@ def initial_candidates(
             levels = len(set(_degrees(basis)))
             for stages in ("all", "degree") if levels > 1 else ("all",):
                 t0 = time.perf_counter()
-                m = global_start(
+                m, last = _global_start(
                     data, n, basis, fixed, local=local, stages=stages, max_iter=max_iter
                 )
                 steps = "; ".join(
@@ -1010,7 +1076,7 @@ def initial_candidates(
                         t0,
                         f"constant model from local model {m.info['point']}, then groups "
                         f"freed ({stages}): {steps}",
-                        refine=False,
+                        fit=last,
                     )
                 )
     return out
