@@ -83,12 +83,10 @@ def _figures(result: IdentifyResult, folder: Path) -> list[tuple[str, str]]:
         "group_norms.png",
         "Relative group magnitudes of the SMILE model and the chosen model",
     )
-    val = None
-    if result.validation is not None:
-        val = np.array([e.validation_vnls for e in result.path.results], dtype=float)
-    chosen = result.chosen - 1 if result.chosen > 0 else None
     keep(
-        plots.accuracy_path(result.path, validation_vnls=val, chosen=chosen),
+        # The entries carry the unregularised model and, when given, validation V_NLS
+        # with its noise floor.
+        plots.accuracy_path(result.entries, chosen=result.chosen),
         "path.png",
         "Accuracy against simplicity along the l2,1 path",
     )
