@@ -315,7 +315,7 @@ def test_true_system_refuses_impossible_scheduling():
     with pytest.raises(ValueError, match="p"):
         gantry.true_system(3.0)  # thinner than two walls
     with pytest.raises(ValueError, match="p"):
-        stage.true_system(-0.33)  # beam shorter than 5 cm
+        stage.true_system(-0.58)  # beam shorter than 5 cm
     with pytest.raises(ValueError, match="p"):
         gantry.true_system(math.nan)
     with pytest.raises(TypeError, match="p"):

@@ -113,3 +113,15 @@ def test_failed_write_leaves_the_old_file(tmp_path, rng):
     with pytest.raises(TypeError):
         bad.save(path)
     assert path.read_bytes() == before
+
+
+def test_written_files_have_the_usual_permissions(tmp_path, rng):
+    import os
+    import stat
+
+    umask = os.umask(0o022)
+    try:
+        path = random_lpv(rng, n=2, r=1, l=1, nb=1).save(tmp_path / "m.json")
+    finally:
+        os.umask(umask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644

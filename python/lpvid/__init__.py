@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, report, robust
+from lpvid import datasets, plots, report, robust
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -57,6 +57,7 @@ __all__ = [
     "identify_lti",
     "l21_path",
     "multisine",
+    "plots",
     "residual",
     "smile",
     "smile_candidates",

@@ -148,12 +148,18 @@ def _print_result(result: lpvid.IdentifyResult) -> None:
 
 
 def _run(
-    result_of: Any, out: str, figures: bool, say: Any, title: str, description: str | None
+    result_of: Any,
+    out: str,
+    figures: bool,
+    say: Any,
+    title: str,
+    description: str | None,
+    **labels: Any,
 ) -> int:
     result = result_of()
     say("writing the report")
     path = lpvid.report.write_report(
-        result, out, title=title, description=description, figures=figures
+        result, out, title=title, description=description, figures=figures, **labels
     )
     _print_result(result)
     print(f"report: {path}")
@@ -181,6 +187,9 @@ def _demo(args: argparse.Namespace) -> int:
         say,
         f"lpvid demo: {ds.name}",
         ds.description,
+        inputs=ds.inputs,
+        outputs=ds.outputs,
+        p_label=ds.scheduling,
     )
 
 

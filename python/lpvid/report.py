@@ -48,7 +48,7 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
     }
 
 
-def _figures(result: IdentifyResult, folder: Path) -> list[tuple[str, str]]:
+def _figures(result: IdentifyResult, folder: Path, labels: dict[str, Any]) -> list[tuple[str, str]]:
     """Draw the report's figures; returns (caption, relative path) pairs."""
     from lpvid import plots
 
@@ -61,20 +61,22 @@ def _figures(result: IdentifyResult, folder: Path) -> list[tuple[str, str]]:
         out.append((caption, f"{folder.name}/{name}"))
 
     keep(
-        plots.frf_fit(model, data, title="identification points"),
+        plots.frf_fit(model, data, title="identification points", **labels),
         "frf_identification.png",
         "Measured FRF, model FRF, error |G - Gm| and sigma at the identification points",
     )
     if result.validation is not None:
         keep(
-            plots.frf_fit(model, result.validation, title="validation points"),
+            plots.frf_fit(model, result.validation, title="validation points", **labels),
             "frf_validation.png",
             "The same at the validation points",
         )
     if data.n_params == 1:
         lo, hi = data.p_range
         keep(
-            plots.magnitude_surface(model, data.freqs_hz, np.linspace(lo, hi, 60)),
+            plots.magnitude_surface(
+                model, data.freqs_hz, np.linspace(lo, hi, 60), p_marks=data.p, **labels
+            ),
             "surface.png",
             "Magnitude of the chosen model over frequency and scheduling",
         )
@@ -83,12 +85,10 @@ def _figures(result: IdentifyResult, folder: Path) -> list[tuple[str, str]]:
         "group_norms.png",
         "Relative group magnitudes of the SMILE model and the chosen model",
     )
-    val = None
-    if result.validation is not None:
-        val = np.array([e.validation_vnls for e in result.path.results], dtype=float)
-    chosen = result.chosen - 1 if result.chosen > 0 else None
     keep(
-        plots.accuracy_path(result.path, validation_vnls=val, chosen=chosen),
+        # The entries carry the unregularised model and, when given, validation V_NLS
+        # with its noise floor.
+        plots.accuracy_path(result.entries, chosen=result.chosen),
         "path.png",
         "Accuracy against simplicity along the l2,1 path",
     )
@@ -102,6 +102,9 @@ def write_report(
     title: str = "lpvid identification",
     description: str | None = None,
     figures: bool = True,
+    inputs: Any = None,
+    outputs: Any = None,
+    p_label: str | None = None,
 ) -> Path:
     """Write a Markdown report, its figures, the model files and the key numbers.
 
@@ -122,6 +125,10 @@ def write_report(
         A paragraph on the system and the data.
     figures : bool
         Draw the figures (needs matplotlib).
+    inputs, outputs : sequence of str, optional
+        Names (with units) of the inputs and outputs, for the figures.
+    p_label : str, optional
+        Name (with unit) of the scheduling parameter, for the figures.
 
     Returns
     -------
@@ -139,7 +146,12 @@ def write_report(
     figure_note = ""
     if figures:
         try:
-            drawn = _figures(result, out / "figures")
+            labels = {
+                k: v
+                for k, v in (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
+                if v is not None
+            }
+            drawn = _figures(result, out / "figures", labels)
         except ImportError as exc:
             figure_note = f"(figures skipped: {exc})"
     md = _markdown(result, title, description, drawn, figure_note)
