@@ -304,6 +304,11 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
         assert np.isclose(c.validation_vnls, lpvid.vnls(c.model, val))
         assert c.noise_floor == M and c.validation_floor == Mv and c.seconds >= 0
         assert c.fit is not None and np.isclose(c.fit.vnls, c.vnls) and c.fit.model is c.model
+        assert c.start is not None and c.start.n_basis == 1
+        if c.name.startswith(("smile:", "continuation+smile:")):
+            assert c.start.info["form"] == c.name.rsplit(":", 1)[1]
+        else:  # the last stage of "global:all" starts from the constant model
+            assert c.start.group_norms().count() == 0 and c.constant_groups == 0
     chosen, reason = robust.choose(cands)
     assert not chosen.name.startswith("smile:")
     assert chosen.vnls < 1.1 * M  # within 10 % of the noise floor
@@ -354,6 +359,9 @@ def test_choose_prefers_validation_then_simplicity():
     assert "simplest" in reason
     pick, _ = robust.choose(cands, tolerance=0.0)
     assert pick.name == "b"
+    # A model unstable between the points loses even with the best validation.
+    pick, reason = robust.choose([*cands, fake("wild", 980, 400, stable=False)])
+    assert pick.name == "c" and "stable" in reason
 
 
 def test_choose_without_validation_uses_the_noise_floor_and_stability():

@@ -693,7 +693,7 @@ def global_start(
         steps taken).
 
     """
-    return _global_start(
+    model, _, _ = _global_start(
         data,
         order,
         basis,
@@ -702,7 +702,8 @@ def global_start(
         point=point,
         stages=stages,
         max_iter=max_iter,
-    )[0]
+    )
+    return model
 
 
 def _global_start(
@@ -715,8 +716,8 @@ def _global_start(
     point: int | None = None,
     stages: str = "all",
     max_iter: int = 100,
-) -> tuple[LpvModel, FitResult]:
-    """:func:`global_start`, also returning the last fit."""
+) -> tuple[LpvModel, FitResult, LpvModel]:
+    """:func:`global_start`, also returning the last fit and the model it started from."""
     from lpvid.fit import fit_nls
     from lpvid.local import identify_lti
     from lpvid.smile import _p_range
@@ -757,6 +758,7 @@ def _global_start(
     for level in plan:
         frozen = [i + 1 for i, d in enumerate(degrees) if d > level]
         mask = user | _group_mask(model, frozen)
+        stage_start = model
         fit = fit_nls(model, data, mask, max_iter=max_iter)
         model = fit.model
         history.append(
@@ -774,7 +776,8 @@ def _global_start(
             "history": history,
         }
     )
-    return model, fit
+    stage_start.info.update(model.info)
+    return model, fit, stage_start
 
 
 # ----------------------------------------------------------------------------- candidates
@@ -855,10 +858,11 @@ class Candidate:
         Time spent on this candidate (building the start and the fit; the
         local models, shared by several candidates, are not counted).
     constant_groups : int
-        Groups (of 4 Nb) that the start left constant (relative magnitude
-        below 1e-6; ``info["constant_groups"]`` of a SMILE model): the
-        simplicity the start offers the l2,1 path. 0 for a global start,
-        whose last stage frees every group.
+        Groups (of 4 Nb) that the SMILE start left constant (relative
+        magnitude below 1e-6, its ``info["constant_groups"]``): the
+        simplicity the start offers the l2,1 path. For a global start, the
+        groups still constant in the refined model (usually 0: its last
+        stage frees every group).
     stable : bool
         Whether the frozen models are stable at the identification points
         and at 7 values between every two neighbouring points
@@ -869,6 +873,10 @@ class Candidate:
         What was done, in words.
     fit : FitResult or None
         The last :func:`lpvid.fit_nls` run (its history and timings).
+    start : LpvModel or None
+        The model that run started from: the SMILE model (with its
+        ``info["form"]``), or for a global start the model before its last
+        stage (for ``"global:all"``, the constant model).
     """
 
     name: str
@@ -882,6 +890,7 @@ class Candidate:
     stable: bool = True
     note: str = ""
     fit: FitResult | None = None
+    start: LpvModel | None = None
 
     @property
     def ratio(self) -> float:
@@ -919,12 +928,15 @@ def _candidate(
     if fit is None:
         fit = fit_nls(start, data, fixed, max_iter=max_iter)
     model = fit.model
-    model.info.update(start.info)
-    nb = start.n_basis
-    if "constant_groups" in start.info:
+    if model is not start and "method" not in model.info:
+        # A refined SMILE model: say where it came from.
+        model.info.update({"method": "fit_nls", "start": dict(start.info)})
+    model.info["candidate"] = name
+    nb = model.n_basis
+    if "constant_groups" in start.info:  # a SMILE start
         const = int(start.info["constant_groups"])
-    elif nb and start.p_range is not None:
-        const = 4 * nb - start.group_norms().count(1e-6)
+    elif nb and model.p_range is not None:
+        const = 4 * nb - model.group_norms().count(1e-6)
     else:
         const = 0
     return Candidate(
@@ -939,6 +951,7 @@ def _candidate(
         stable=frozen_stable(model, between_points(data.p)),
         note=note,
         fit=fit,
+        start=start,
     )
 
 
@@ -1059,7 +1072,7 @@ def initial_candidates(
             levels = len(set(_degrees(basis)))
             for stages in ("all", "degree") if levels > 1 else ("all",):
                 t0 = time.perf_counter()
-                m, last = _global_start(
+                m, last, m0 = _global_start(
                     data, n, basis, fixed, local=local, stages=stages, max_iter=max_iter
                 )
                 steps = "; ".join(
@@ -1069,7 +1082,7 @@ def initial_candidates(
                 out.append(
                     _candidate(
                         f"global:{stages}",
-                        m,
+                        m0,
                         data,
                         validation,
                         fixed,
@@ -1085,14 +1098,17 @@ def initial_candidates(
 def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Candidate, str]:
     """The best initial candidate, and why.
 
+    Only the candidates whose frozen models are stable between the points
+    (:attr:`Candidate.stable`) take part, when there are any: a model that
+    fits the points and goes unstable between them is rarely what the data
+    mean, however it fares at a few validation points.
+
     With validation data (every candidate has ``validation_vnls``): the
     lowest validation V_NLS; candidates within ``tolerance`` of it count
     as equal and the simplest of them (most constant groups), then the
     one with the lowest validation V_NLS, wins.
 
-    Without: only the candidates whose frozen models are stable between
-    the points (:attr:`Candidate.stable`) take part, when there are any;
-    among them the lowest identification V_NLS, where candidates within two
+    Without: the lowest identification V_NLS, where candidates within two
     standard deviations of the noise floor (``2 sqrt(M)``, M the number of
     residuals) of the best count as equal and the simplest wins, then the
     lowest V_NLS.
@@ -1116,14 +1132,22 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
             raise TypeError(f"candidates[{k}]: expected a Candidate, got {type(c).__name__}")
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
     finite = [c for c in cands if np.isfinite(c.vnls)] or cands
-    if all(c.validation_vnls is not None for c in finite):
-        vals = {id(c): float(c.validation_vnls) for c in finite}  # type: ignore[arg-type]
+    pool = [c for c in finite if c.stable] or finite
+    dropped = len(finite) - len(pool)
+    among = (
+        f" among the {len(pool)} candidates whose frozen models are stable between the "
+        f"points ({dropped} left out)"
+        if dropped
+        else ""
+    )
+    if all(c.validation_vnls is not None for c in pool):
+        vals = {id(c): float(c.validation_vnls) for c in pool}  # type: ignore[arg-type]
         best = min(vals.values())
-        tied = [c for c in finite if vals[id(c)] <= (1 + tol) * best]
+        tied = [c for c in pool if vals[id(c)] <= (1 + tol) * best]
         pick = min(tied, key=lambda c: (-c.constant_groups, vals[id(c)]))
         reason = (
             f"lowest validation V_NLS ({vals[id(pick)]:.5g}, "
-            f"{pick.validation_ratio:.3f} x its noise floor)"
+            f"{pick.validation_ratio:.3f} x its noise floor){among}"
         )
         if len(tied) > 1:
             reason += (
@@ -1131,8 +1155,6 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
                 f"the simplest ({pick.constant_groups} constant groups) kept"
             )
         return pick, reason
-    pool = [c for c in finite if c.stable] or finite
-    dropped = len(finite) - len(pool)
     floor = pool[0].noise_floor
     best_v = min(c.vnls for c in pool)
     slack = 2.0 * np.sqrt(floor)
@@ -1140,13 +1162,8 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
     pick = min(tied, key=lambda c: (-c.constant_groups, c.vnls))
     reason = (
         f"no validation data; lowest identification V_NLS ({pick.vnls:.5g}, "
-        f"{pick.ratio:.3f} x the noise floor)"
+        f"{pick.ratio:.3f} x the noise floor){among}"
     )
-    if dropped:
-        reason += (
-            f" among the {len(pool)} candidates whose frozen models are stable between the "
-            f"points ({dropped} left out)"
-        )
     if len(tied) > 1:
         reason += (
             f"; {len(tied)} candidates within 2 sqrt(M) = {slack:.3g} of the best, "
