@@ -1,7 +1,8 @@
-"""The whole identification pipeline: local models, SMILE, NLS, l2,1 path, a choice.
+"""The whole identification pipeline: local models, initial models, NLS, l2,1 path, a choice.
 
-:func:`identify` chains :func:`~lpvid.identify_lti`, :func:`~lpvid.smile`
-(every coherent form), :func:`~lpvid.fit_nls` and :func:`~lpvid.l21_path`,
+:func:`identify` chains :func:`~lpvid.identify_lti`, the initial models of
+:mod:`lpvid.robust` (SMILE in every coherent form, continuation, global
+starts), :func:`~lpvid.fit_nls` and the l2,1 path of :func:`~lpvid.l21_path`,
 then chooses a model on the path and says why.
 """
 
@@ -16,45 +17,20 @@ import numpy as np
 
 from lpvid._checks import positive_float, positive_int, real_array
 from lpvid.basis import Basis
-from lpvid.cost import check_compatible, vnls
+from lpvid.cost import vnls
 from lpvid.data import FrfData
-from lpvid.fit import fit_l21, fit_nls
+from lpvid.fit import fit_l21
 from lpvid.local import LocalModels, identify_lti
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
-from lpvid.smile import smile_candidates
+from lpvid.robust import ROUTES, Candidate, choose, initial_candidates
 
-__all__ = ["DEFAULT_GAMMAS", "Candidate", "PathEntry", "IdentifyResult", "identify"]
+__all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
 
 #: Default sweep of the (normalised) regularisation weight, largest first.
 DEFAULT_GAMMAS = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)
 
 Progress = Callable[[str], Any]
-
-
-@dataclass
-class Candidate:
-    """An initial model: a SMILE form (or another route) refined by :func:`fit_nls`.
-
-    Attributes
-    ----------
-    name : str
-        Route and coherent form, e.g. ``"smile:observability"``.
-    model : LpvModel
-        The refined model.
-    vnls : float
-        V_NLS on the identification data.
-    validation_vnls : float or None
-        V_NLS on the validation data, when given.
-    constant_groups : int
-        Groups the SMILE model left constant (a simplicity measure).
-    """
-
-    name: str
-    model: LpvModel
-    vnls: float
-    validation_vnls: float | None
-    constant_groups: int
 
 
 @dataclass
@@ -105,8 +81,12 @@ class IdentifyResult:
         The unregularised model (gamma = 0) and every model of the l2,1
         path, with V_NLS, groups kept and timings.
     initial : LpvModel
-        The SMILE model the fits started from (the chosen coherent form).
-    candidates : list of Candidate
+        The model the unregularised fit started from (for a SMILE start,
+        the SMILE model with its coherent form in ``info["form"]``).
+    start : str
+        Name of the chosen start (route and form, e.g. ``"smile:modal"``,
+        ``"continuation+smile:observability"``, ``"global:all"``).
+    candidates : list of lpvid.robust.Candidate
         Every initial model tried, refined by fit_nls.
     initial_reason : str
         Why that starting point was chosen.
@@ -128,6 +108,7 @@ class IdentifyResult:
     reason: str
     entries: list[PathEntry]
     initial: LpvModel
+    start: str
     candidates: list[Candidate]
     initial_reason: str
     local: LocalModels
@@ -164,7 +145,7 @@ class IdentifyResult:
         """A few lines for people."""
         e = self.entry
         lines = [
-            f"start: {self.initial.info.get('form', '?')} coherent form ({self.initial_reason})",
+            f"start: {self.start} ({self.initial_reason})",
             f"chosen: gamma = {e.gamma:g}, {e.n_groups} groups kept "
             f"(the SMILE model uses {self.initial.group_norms().count()}); {self.reason}",
             f"V_NLS = {e.vnls:.6g} on identification data (noise floor {e.noise_floor}, "
@@ -212,14 +193,6 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
 def _strictly_proper(fixed: Any) -> bool:
     """Whether ``fixed`` asks to keep all of D (so the local models have D = 0)."""
     return isinstance(fixed, dict) and fixed.get("D") is True
-
-
-def _choose_start(candidates: list[Candidate], validated: bool) -> tuple[Candidate, str]:
-    if validated:
-        best = min(candidates, key=lambda c: (c.validation_vnls, -c.constant_groups))
-        return best, "lowest validation V_NLS after fit_nls"
-    best = min(candidates, key=lambda c: (round(c.vnls, 6), -c.constant_groups))
-    return best, "lowest identification V_NLS after fit_nls (no validation data)"
 
 
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
@@ -275,6 +248,7 @@ def identify(
     fixed: Any = None,
     *,
     forms: Sequence[str] | None = None,
+    routes: Sequence[str] = ROUTES,
     tolerance: float = 0.1,
     eps: float = 1e-3,
     threshold: float = 1e-6,
@@ -284,10 +258,14 @@ def identify(
     """Identify an LPV model from FRF data: the whole pipeline.
 
     1. One LTI model per scheduling point (:func:`~lpvid.identify_lti`).
-    2. SMILE interpolation over ``basis`` in every coherent form
-       (:func:`~lpvid.smile_candidates`), each refined by :func:`~lpvid.fit_nls`;
-       the start is the one with the lowest validation V_NLS (identification
-       V_NLS without validation data), the simpler on a tie.
+    2. Initial LPV models by several routes (:func:`lpvid.robust.initial_candidates`):
+       SMILE over ``basis`` in every coherent form from the plain local
+       models, the same from local models found by continuation along the
+       scheduling axis, and global starts from one well-determined local
+       model; each is refined by :func:`~lpvid.fit_nls`. The start is chosen
+       by :func:`lpvid.robust.choose`: among models stable between the
+       points, the lowest validation V_NLS (identification V_NLS without
+       validation data), the simpler on a near tie.
     3. The reweighted l2,1 path over ``gammas`` from the refined start
        (as :func:`~lpvid.l21_path`: warm-started, largest gamma first).
     4. A choice among the unregularised model and the path: with
@@ -314,6 +292,9 @@ def identify(
         ``{"D": True}`` the local models are strictly proper and D stays zero.
     forms : sequence of str, optional
         Coherent forms to try (default all, see :data:`lpvid.smile.FORMS`).
+    routes : sequence of str
+        Routes to initial models: ``"plain"``, ``"continuation"``,
+        ``"global"`` (default all).
     tolerance : float
         Relative slack on the best validation V_NLS for the choice.
     eps, threshold, max_outer
@@ -348,33 +329,23 @@ def identify(
     local = identify_lti(data, n, strictly_proper=_strictly_proper(fixed))
     timings["local_s"] = time.perf_counter() - t
 
-    _say(progress, "SMILE interpolation in every coherent form, each refined by fit_nls")
+    _say(progress, f"initial models ({', '.join(routes)}), each refined by fit_nls")
     t = time.perf_counter()
-    initial_models = smile_candidates(local, basis=basis, forms=forms)
-    if not initial_models:
-        raise ValueError("no coherent form could be built for these local models")
-    candidates: list[Candidate] = []
-    fits: dict[str, FitResult] = {}
-    for form, m0 in initial_models.items():
-        check_compatible(m0, data)
-        fit = fit_nls(m0, data, fixed)
-        fits[form] = fit
-        candidates.append(
-            Candidate(
-                name=f"smile:{form}",
-                model=fit.model,
-                vnls=fit.vnls,
-                validation_vnls=None if validation is None else vnls(fit.model, validation),
-                constant_groups=int(m0.info.get("constant_groups", 0)),
-            )
-        )
+    candidates = initial_candidates(
+        data, n, basis, fixed, validation=validation, routes=routes, forms=forms, local=local
+    )
+    if not candidates:
+        raise ValueError("no initial model could be built for these local models")
+    start, initial_reason = choose(candidates)
     timings["smile_s"] = time.perf_counter() - t
-    start, initial_reason = _choose_start(candidates, validation is not None)
-    form = start.name.split(":", 1)[1]
-    nls = fits[form]
+    assert start.fit is not None and start.start is not None
+    nls = start.fit
+    for c in sorted(candidates, key=lambda c: (c.validation_vnls or 0.0, c.vnls)):
+        val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
+        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{'' if c.stable else ', unstable'}")
     timings["nls_s"] = nls.timings["total_s"]
 
-    _say(progress, f"l2,1 path over {gs.size} values of gamma from the {form} start")
+    _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
     # The path of l21_path, run here one gamma at a time to report progress.
     results = []
@@ -401,7 +372,8 @@ def identify(
         chosen=chosen,
         reason=reason,
         entries=entries,
-        initial=initial_models[form],
+        initial=start.start,
+        start=start.name,
         candidates=candidates,
         initial_reason=initial_reason,
         local=local,

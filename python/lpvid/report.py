@@ -21,7 +21,7 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
     return {
         "order": result.model.n_states,
         "basis": result.model.basis.names,
-        "initial_form": result.initial.info.get("form"),
+        "start": result.start,
         "chosen_gamma": e.gamma,
         "chosen_index": result.chosen,
         "reason": result.reason,
@@ -187,8 +187,7 @@ def _markdown(
         "## Result",
         "",
         f"- order {result.model.n_states}, basis {', '.join(result.model.basis.names)}",
-        f"- start: SMILE in the {result.initial.info.get('form', '?')} coherent form "
-        f"({result.initial_reason})",
+        f"- start: {result.start} ({result.initial_reason})",
         f"- chosen: gamma = {e.gamma:g} with {e.n_groups} groups kept "
         f"(SMILE: {result.initial.group_norms().count()}); {result.reason}",
         f"- V_NLS = {e.vnls:.6g} on the identification data: {e.vnls / e.noise_floor:.4f} "
