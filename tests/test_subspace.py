@@ -236,7 +236,7 @@ def test_refined_mimo_models_reach_the_noise_floor(rng, Ts, strictly_proper):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_pole_below_the_band_is_found_from_one_of_the_starts(seed):
-X
+    """The built-in positioning stage: SISO, D = 0, real poles at 3 and 6 Hz, the band's low edge.
 
     The subspace step places the slowest pole near -700 rad/s; refined from the
     balanced estimate alone it ran off through infinity (unstable models at
