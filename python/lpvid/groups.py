@@ -43,7 +43,7 @@ class GroupNorms:
     def nonzero(self, threshold: float = 1e-6) -> dict[str, list[int]]:
         """Basis indices ``i`` (1-based) with relative magnitude above ``threshold``, per matrix."""
         return {
-            x: [i + 1 for i in np.flatnonzero(self.relative[k] > threshold)]
+            x: [int(i) + 1 for i in np.flatnonzero(self.relative[k] > threshold)]
             for k, x in enumerate(MATRICES)
         }
 
