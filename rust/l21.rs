@@ -8,7 +8,7 @@
 
 use crate::error::{invalid, Result};
 use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
-use crate::layout::{FreeSet, Matrix, Shape};
+use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::problem::Problem;
 use crate::socp::{ConeGroup, ConeProblem, ConeSolver, DEFAULT_CONE_TOL};
@@ -465,9 +465,4 @@ pub fn l21_path(
         }
     }
     Ok(out)
-}
-
-/// The matrix and basis index of every group, in the order of the weights.
-pub fn group_labels(shape: &Shape) -> Vec<(Matrix, usize)> {
-    shape.groups().iter().map(|g| (g.matrix, g.basis)).collect()
 }

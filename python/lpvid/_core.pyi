@@ -1,5 +1,8 @@
 """Type stub of the compiled core (private)."""
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,3 +51,39 @@ class Problem:
     def gauss_newton(
         self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
+
+Settings = dict[str, float | int | str]
+Callback = Callable[[dict[str, Any]], Any] | None
+
+def fit_nls(
+    problem: Problem,
+    theta: NDArray[np.float64],
+    free: NDArray[np.bool_] | None,
+    settings: Settings,
+    callback: Callback = None,
+) -> dict[str, Any]: ...
+def fit_l21(
+    problem: Problem,
+    theta: NDArray[np.float64],
+    sup_norms: NDArray[np.float64],
+    free: NDArray[np.bool_] | None,
+    settings: Settings,
+    callback: Callback = None,
+) -> dict[str, Any]: ...
+def l21_path(
+    problem: Problem,
+    theta: NDArray[np.float64],
+    sup_norms: NDArray[np.float64],
+    gammas: NDArray[np.float64],
+    free: NDArray[np.bool_] | None,
+    settings: Settings,
+    callback: Callback = None,
+) -> list[tuple[float, dict[str, Any]]]: ...
+def cone_step(
+    problem: Problem,
+    theta: NDArray[np.float64],
+    sup_norms: NDArray[np.float64],
+    free: NDArray[np.bool_] | None,
+    settings: Settings,
+    mu: float,
+) -> dict[str, Any]: ...

@@ -34,10 +34,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.typing import NDArray
-from scipy.optimize import linear_sum_assignment
-from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
 
 __all__ = [
     "CoherenceError",
@@ -89,6 +86,8 @@ def balance(models: Sequence[Ss], Ts: float | None) -> tuple[list[Ss], bool]:
         Gramians to be positive definite; then nothing is balanced.
 
     """
+    import scipy.linalg as sla
+
     out = []
     for A, B, C, D in models:
         if not _stable(A, Ts):
@@ -209,6 +208,8 @@ def propagation_order(p: Arr, root: int | None = None) -> tuple[NDArray[np.int_]
         ``parent[k]`` is the already visited neighbour of point k (-1 for the root).
 
     """
+    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
+
     N = p.shape[0]
     span = np.ptp(p, axis=0)
     s = (p - p.min(axis=0)) / np.where(span > 0, span, 1.0)
@@ -262,6 +263,8 @@ def _match_cost(a: dict[str, object], b: dict[str, object]) -> float:
 
 def _track(all_modes: list[list[dict[str, object]]], p: Arr) -> list[list[dict[str, object]]]:
     """Reorder every point's modes so that index j is the same mode everywhere."""
+    from scipy.optimize import linear_sum_assignment
+
     counts = {(sum(m["real"] for m in ms), len(ms)) for ms in all_modes}  # type: ignore[misc]
     if len(counts) != 1:
         raise CoherenceError(

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array, sample_time
@@ -211,6 +210,8 @@ def _frf(sys: Matrices, z: NDArray[np.complex128]) -> NDArray[np.complex128]:
 
 def _zoh(A: NDArray[np.float64], B: NDArray[np.float64], Ts: float) -> tuple[Any, Any]:
     """Zero-order-hold sampling: ``Ad = e^{A Ts}``, ``Bd = int_0^Ts e^{A s} ds B``."""
+    import scipy.linalg
+
     n, r = B.shape
     big = np.zeros((n + r, n + r))
     big[:n, :n] = A
@@ -335,6 +336,8 @@ def _gantry_mechanics(p_mm: float) -> tuple[NDArray[np.float64], ...]:
     ``x = (carriages, bridge ends, bridge middle, head)`` displacements in x,
     ``u`` the torque of each motor and ``y = S x''`` (head, carriages).
     """
+    import scipy.linalg
+
     g = GANTRY
     t = g["t"]
     if not p_mm > 2e3 * t:
@@ -373,6 +376,8 @@ def _gantry_mechanics(p_mm: float) -> tuple[NDArray[np.float64], ...]:
 
 def _gantry_physics(p_mm: float) -> Matrices:
     """Continuous-time 6-state modal model of the gantry at tube side ``p_mm``."""
+    import scipy.linalg
+
     M, K, _, b, S = _gantry_mechanics(p_mm)
     zeta = GANTRY["damping"]
     w2, phi = scipy.linalg.eigh(K, M)

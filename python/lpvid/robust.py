@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import linear_sum_assignment
 
 from lpvid._checks import positive_float, positive_int, real_array
 from lpvid.basis import Basis
@@ -98,6 +97,8 @@ def pole_coordinates(model: LpvModel | Sequence[Any]) -> NDArray[np.complex128]:
 
 def _match(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> tuple[float, int, int]:
     """Best pairing of two pole sets: the largest pair distance, and the worst pair."""
+    from scipy.optimize import linear_sum_assignment
+
     cost = np.abs(a[:, None] - b[None, :])
     rows, cols = linear_sum_assignment(cost)
     k = int(np.argmax(cost[rows, cols]))
