@@ -18,8 +18,9 @@ from systems import (
 )
 
 import lpvid
-from lpvid.coherent import CoherenceError, propagation_order
-from lpvid.smile import FORMS
+from lpvid.initial.coherent import CoherenceError
+from lpvid.initial.smile import FORMS
+from lpvid.schedule import propagation_order
 
 GANTRY_BASIS = lpvid.Polynomial(4, domain=(24.0, 48.0))
 

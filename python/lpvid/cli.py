@@ -198,8 +198,7 @@ def _basis(spec: str, domain: Any, data: lpvid.FrfData) -> lpvid.Basis:
     if kind not in ("poly", "legendre") or not degree.isdigit():
         raise _Misuse(f"--basis: expected poly:D or legendre:D, got {spec!r}")
     if domain is None:
-        lo, hi = data.p_range
-        domain = (lo, hi) if data.n_params == 1 else list(zip(lo, hi, strict=True))
+        domain = data.p_range
     if kind == "poly":
         return lpvid.Polynomial(int(degree), domain=domain)
     return lpvid.Legendre(int(degree), domain=domain)

@@ -11,8 +11,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid._checks import complex_array, real_array, sample_time
+from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
 from lpvid._files import write_atomic
+from lpvid.schedule import scheduling_range
 
 __all__ = ["FrfData", "z_points"]
 
@@ -176,11 +177,12 @@ class FrfData:
         return z_points(self.freqs_hz, self.Ts)
 
     @property
-    def p_range(self) -> tuple[Any, Any]:
-        """Smallest and largest scheduling value (per parameter when Np > 1)."""
-        if self.p.ndim == 1:
-            return float(self.p.min()), float(self.p.max())
-        return tuple(self.p.min(axis=0)), tuple(self.p.max(axis=0))
+    def p_range(self) -> Any:
+        """The scheduling range of the points: ``(lo, hi)``, or ``[(lo, hi), ...]`` per parameter.
+
+        The convention of every scheduling range in lpvid (see :mod:`lpvid.schedule`).
+        """
+        return scheduling_range(self.p)
 
     def subset(self, points: Any) -> FrfData:
         """Return the data of some scheduling points.
@@ -243,7 +245,7 @@ class FrfData:
                 raise TypeError(f"parts[{i}]: expected FrfData, got {type(d).__name__}")
         first = items[0]
         for i, d in enumerate(items[1:], start=1):
-            if d.Ts != first.Ts:
+            if not same_sample_time(d.Ts, first.Ts):
                 raise ValueError(f"parts[{i}]: Ts={d.Ts} differs from Ts={first.Ts} of parts[0]")
             if d.freqs_hz.shape != first.freqs_hz.shape or not np.allclose(
                 d.freqs_hz, first.freqs_hz, rtol=1e-12, atol=0.0
