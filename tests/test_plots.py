@@ -144,6 +144,9 @@ def test_frf_fit_refuses_mismatched_input(rng):
         plots.frf_fit(model, data, outputs=["one"])
     with pytest.raises(TypeError, match="data"):
         plots.frf_fit(model, data.G)
+    two = lpvid.FrfData(np.c_[data.p, data.p], data.freqs_hz, data.G, data.sigma, Ts=data.Ts)
+    with pytest.raises(ValueError, match=r"^data: has 2 scheduling parameter\(s\)"):
+        plots.frf_fit(model, two)
 
 
 # -------------------------------------------------------------- magnitude surface
