@@ -191,7 +191,7 @@ def test_callback_errors_propagate(case):
         lpvid.fit_l21(start, data, 0.01, callback=broken)
 
 
-def test_ctrl_c_returns_the_best_model_so_far(case):
+def test_ctrl_c_returns_the_best_model_so_far(case, python_sigint):
     start, data, _ = case
     calls = []
 
@@ -201,7 +201,7 @@ def test_ctrl_c_returns_the_best_model_so_far(case):
             signal.raise_signal(signal.SIGINT)
 
     fit = lpvid.fit_nls(start, data, callback=interrupt)
-    assert fit.interrupted and fit.stop == "interrupted" and len(calls) == 3
+    assert fit.interrupted and fit.stop == "keyboard_interrupt" and len(calls) == 3
     assert fit.vnls <= lpvid.vnls(start, data)
     assert fit.vnls == pytest.approx(lpvid.vnls(fit.model, data), rel=1e-12)
 
@@ -216,6 +216,8 @@ def test_ctrl_c_returns_the_best_model_so_far(case):
         (dict(gamma=0.1, callback=3), TypeError, "callback"),
         (dict(gamma="a"), TypeError, "gamma"),
         (dict(gamma=0.1, fixed={"Q": True}), ValueError, "fixed"),
+        (dict(gamma=0.1, epsilon=1e-3), TypeError, "epsilon"),
+        (dict(gamma=0.1, settings={"eps": 1e-3}), TypeError, "settings"),
     ],
 )
 def test_bad_arguments(case, kwargs, exc, name):

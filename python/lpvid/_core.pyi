@@ -79,6 +79,7 @@ def l21_path(
     settings: Settings,
     callback: Callback = None,
 ) -> list[tuple[float, dict[str, Any]]]: ...
+def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
     problem: Problem,
     theta: NDArray[np.float64],

@@ -72,7 +72,7 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
     Along the minimum spanning tree of the points (scaled scheduling space),
     breadth first from ``root``: in one dimension outwards along the sorted
     points, for several parameters along a nearest-neighbour tree
-    (:func:`lpvid.coherent.propagation_order`).
+    (:func:`lpvid.schedule.propagation_order`).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """SMILE: interpolation of local LTI models in coherent coordinates (method.md 5, 5a).
 
 State-space Model Interpolation of Local Estimates: bring the local models
-to coherent state coordinates (:mod:`lpvid.coherent`), then fit every matrix
+to coherent state coordinates (:mod:`lpvid.initial.coherent`), then fit every matrix
 entry over the basis functions by linear least squares. With N points and
 N - 1 polynomial terms the interpolation is exact, so the LPV model
 reproduces every local model.
@@ -242,7 +242,7 @@ def smile_candidates(
     -------
     dict of str to LpvModel
         One model per form that could be built, keyed by form; a form that
-        fails for these models (see :mod:`lpvid.coherent`) is left out and
+        fails for these models (see :mod:`lpvid.initial.coherent`) is left out and
         its reason recorded in every model's ``info["unavailable"]``.
 
     """
@@ -327,7 +327,7 @@ def smile(
     ValueError, TypeError
         On malformed or inconsistent input: mismatched models, duplicate or
         too few scheduling values, a rank-deficient basis, an unknown form.
-    lpvid.coherent.CoherenceError
+    lpvid.initial.coherent.CoherenceError
         When the requested form cannot be built (a ValueError).
 
     Notes
