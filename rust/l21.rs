@@ -10,7 +10,7 @@ use crate::error::{invalid, Result};
 use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
-use crate::problem::Problem;
+use crate::objective::Objective;
 use crate::socp::{ConeGroup, ConeProblem, ConeSolver, DEFAULT_CONE_TOL};
 use std::time::Instant;
 
@@ -204,7 +204,7 @@ fn weigh(specs: &[GroupSpec], theta: &[f64], s: &L21Settings) -> Vec<ConeGroup> 
 /// [`levenberg_marquardt`] with its default settings (the cone steps would
 /// reproduce its steps at a higher price).
 pub fn fit_l21(
-    problem: &Problem,
+    problem: &dyn Objective,
     theta0: &[f64],
     free: &FreeSet,
     sup_norms: &[f64],
@@ -384,7 +384,7 @@ pub struct ConeStepReport {
 
 /// One cone step (27) at `theta` with damping `mu`, for inspection and tests.
 pub fn single_cone_step(
-    problem: &Problem,
+    problem: &dyn Objective,
     theta: &[f64],
     free: &FreeSet,
     sup_norms: &[f64],
@@ -436,7 +436,7 @@ pub fn single_cone_step(
 /// (section 5.3 of the paper): each fit starts from the previous result.
 /// Returns the fits in that order.
 pub fn l21_path(
-    problem: &Problem,
+    problem: &dyn Objective,
     theta0: &[f64],
     free: &FreeSet,
     sup_norms: &[f64],

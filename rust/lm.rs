@@ -8,7 +8,7 @@ use crate::dense::{cholesky, cholesky_solve};
 use crate::error::{invalid, Result};
 use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
 use crate::layout::FreeSet;
-use crate::problem::{GaussNewton, Problem};
+use crate::objective::{GaussNewton, Objective};
 use faer::Mat;
 use std::time::Instant;
 
@@ -101,7 +101,7 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
 
 /// Levenberg-Marquardt from `theta0` over the free parameters.
 pub fn levenberg_marquardt(
-    problem: &Problem,
+    problem: &dyn Objective,
     theta0: &[f64],
     free: &FreeSet,
     settings: &LmSettings,

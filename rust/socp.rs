@@ -14,7 +14,7 @@
 //! so that the quadratic has a unit diagonal whatever the parameter scales.
 
 use crate::dense::{cholesky, lower_solve, lower_transpose_solve};
-use crate::problem::GaussNewton;
+use crate::objective::GaussNewton;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
