@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, plots, report, robust
+from lpvid import datasets, plots, readers, report, robust
 from lpvid._core import SingularModelError
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -58,6 +58,7 @@ __all__ = [
     "l21_path",
     "multisine",
     "plots",
+    "readers",
     "residual",
     "smile",
     "smile_candidates",
