@@ -1,6 +1,9 @@
 """Measured FRFs from files: UFF 58, CSV and MATLAB structs load to the arrays they hold."""
 
 import json
+import re
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -81,6 +84,27 @@ def test_uff_ascii_and_binary_load_the_gantry_data(tmp_path, gantry):
     assert prov["parameters"] == ["tube side [mm]"]
     assert prov["points"][1]["records"] == ["tube30.uff, record 1", "tube30.uff, record 3"]
     assert prov["points"][0]["sigma"] == f"coherence, {AVERAGES} averages"
+
+
+def documented_manifests():
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    yield re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+    doc = lpvid.FrfData.from_files.__doc__
+    block = doc.split("Example::\n", 1)[1].split("\n\n        Top-level keys")[0]
+    yield textwrap.dedent(block)
+
+
+@pytest.mark.parametrize("text", list(documented_manifests()), ids=["README", "docstring"])
+def test_the_documented_manifests_load(tmp_path, gantry, text):
+    data = gantry.identification.subset([0, 1])
+    coh = coherence_for(data.G, data.sigma, AVERAGES)
+    for q, p in enumerate(data.p):
+        write_uff(tmp_path / f"tube{int(p)}.uff", data.freqs_hz, data.G[q], coherence=coh[q])
+    (tmp_path / "gantry.toml").write_text(text)
+    loaded = lpvid.FrfData.from_files(tmp_path / "gantry.toml")
+    np.testing.assert_allclose(loaded.G, data.G, rtol=5e-12)
+    np.testing.assert_allclose(loaded.sigma[0], data.sigma[0], rtol=1e-6)
+    assert loaded.Ts == data.Ts and loaded.provenance["outputs"] == ["head", "carriage"]
 
 
 def test_uff_records_by_order_or_by_labels_agree(tmp_path, gantry):

@@ -381,7 +381,6 @@ class FrfData:
         The manifest lists, per scheduling value, the file(s) measured there;
         paths are relative to the manifest's folder. Example::
 
-            description = "gantry, five tube sizes"    # free text, ignored
             Ts = 0.0005               # sample time in s; leave out for continuous time
             parameters = ["tube side [mm]"]            # optional names of p
             records = "labels"        # or "output-major" (default), "input-major"
@@ -412,7 +411,7 @@ class FrfData:
         ``unit``), ``points`` (required: tables with ``p`` and ``file`` or
         ``files``, optionally ``sigma``, ``format``, ``variable``), ``Ts``,
         ``parameters``, ``records``, ``sigma``, ``format``, ``variable``,
-        ``description``. Unknown keys are errors.
+        ``description`` (free text). Unknown keys are errors.
 
         Formats, by suffix (``.uff``, ``.unv``, ``.uf``; ``.csv``; ``.mat``)
         or ``format = "uff" | "csv" | "mat"``:
@@ -481,7 +480,7 @@ class FrfData:
             Naming the manifest, file and record: a missing file or record,
             a record of the wrong type (an auto spectrum where an FRF is
             expected), NaN lines, inconsistent units, frequency lines that
-            differ, a bad manifest key.
+            differ, a bad manifest key. TypeError when ``manifest`` is no path.
 
         """
         exp = read_experiment(manifest, lines=lines)
@@ -489,10 +488,5 @@ class FrfData:
             data = cls(exp.p, exp.freqs_hz, exp.G, exp.sigma, exp.Ts)
         except (ValueError, TypeError) as exc:
             raise type(exc)(f"{Path(manifest).name}: {exc}") from exc
-        data.provenance = {
-            **exp.provenance,
-            "outputs": list(exp.outputs),
-            "inputs": list(exp.inputs),
-            "parameters": None if exp.parameters is None else list(exp.parameters),
-        }
+        data.provenance = exp.provenance
         return data

@@ -45,8 +45,9 @@ class Experiment:
     parameters : tuple of str or None
         Names of the scheduling parameters, when the manifest gives them.
     provenance : dict
-        The manifest, per point its files, records and sigma source, and
-        the frequency lines kept and dropped.
+        The manifest, per point its files, records and sigma source, the
+        frequency lines kept and dropped, the names of the outputs, inputs
+        and scheduling parameters.
     """
 
     p: NDArray[np.float64]
@@ -176,6 +177,8 @@ def read_experiment(manifest: str | os.PathLike[str], *, lines: str = "same") ->
     }
     outputs = tuple(c.name for c in m.outputs)
     inputs = tuple(c.name for c in m.inputs)
+    provenance["outputs"], provenance["inputs"] = list(outputs), list(inputs)
+    provenance["parameters"] = None if m.parameters is None else list(m.parameters)
     return Experiment(p, axis.freqs_hz, G, sigma, ts, outputs, inputs, m.parameters, provenance)
 
 
