@@ -337,3 +337,16 @@ def test_fit_command_names_a_bad_file_of_a_manifest(tmp_path, small_manifest, ca
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert "exp.toml: points[2].file: no such file: p2.csv" in err
+
+
+@pytest.mark.parametrize(
+    "unit, per_hz", [("Hz", 1.0), ("kHz", 1e-3), ("rad/s", 2 * np.pi), ("rpm", 60.0)]
+)
+def test_frequency_units_become_hz(tmp_path, unit, per_hz):
+    f = np.linspace(10.0, 40.0, 7)
+    G = (1.0 + np.arange(7.0))[:, None, None] * (1 + 1j)
+    write_csv(tmp_path / "a.csv", f * per_hz, G, freq_unit=unit)
+    manifest = write_manifest(
+        tmp_path / "m.toml", 'outputs = ["y"]\ninputs = ["u"]', [(0, "a.csv")]
+    )
+    np.testing.assert_allclose(lpvid.FrfData.from_files(manifest).freqs_hz, f, rtol=1e-14)

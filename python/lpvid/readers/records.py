@@ -17,12 +17,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "COHERENCE",
+    "FRF",
+    "VARIANCE",
     "Channel",
     "FileError",
     "Record",
-    "hz_per_unit",
     "check_axis",
     "check_values",
+    "direction_name",
+    "hz_per_unit",
+    "parse_direction",
     "same_units",
 ]
 
