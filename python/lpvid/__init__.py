@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, initial, plots, report
+from lpvid import datasets, initial, plots, readers, report
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
@@ -68,6 +68,7 @@ __all__ = [
     "l21_path",
     "multisine",
     "plots",
+    "readers",
     "report",
     "residual",
     "smile",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -21,6 +22,10 @@ The data file holds FRFs measured at frozen scheduling values:
   G (N, F, l, r) complex FRFs (outputs x inputs), optionally sigma (same shape,
   standard deviations; default 1) and Ts (sample time; absent or empty for
   continuous time). lpvid.FrfData.save writes such files.
+  Or a TOML manifest (.toml) listing the measured files per scheduling value:
+  UFF 58 (ASCII or binary), CSV or MATLAB frd/idfrd structs, with sigma from
+  coherence, variance records or a relative level (see lpvid.FrfData.from_files
+  and the README); --lines common keeps the lines all files share.
 
 The pipeline: one LTI model per point (frequency-domain subspace + Levenberg-
 Marquardt), SMILE interpolation over the basis in every coherent form, an
@@ -35,6 +40,7 @@ matters a lot.
 
 example:
   lpvid fit gantry.npz --order 6 --basis poly:4 --validation gantry-val.npz --out fit1
+  lpvid fit gantry.toml --order 6 --basis poly:4 --out fit2
 """
 
 
@@ -82,7 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=FIT_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    fit.add_argument("data", help="FRF data file (.npz or .mat)")
+    fit.add_argument(
+        "data", help="FRF data file (.npz or .mat) or manifest of measured files (.toml)"
+    )
     fit.add_argument("--order", type=int, required=True, help="number of states n")
     fit.add_argument(
         "--basis",
@@ -116,6 +124,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=0.1,
         help="relative slack on the best validation error for the choice (default 0.1)",
+    )
+    fit.add_argument(
+        "--lines",
+        choices=("same", "common"),
+        default="same",
+        help="with a manifest: files must share their frequency lines (same, default) or "
+        "only the lines all files have are kept (common)",
     )
     fit.add_argument("--out", required=True, help="output folder")
     fit.add_argument("--no-figures", action="store_true", help="skip the figures")
@@ -204,19 +219,32 @@ def _basis(spec: str, domain: Any, data: lpvid.FrfData) -> lpvid.Basis:
     return lpvid.Legendre(int(degree), domain=domain)
 
 
-def _load(path: str, what: str) -> lpvid.FrfData:
+def _load(path: str, what: str, lines: str = "same") -> lpvid.FrfData:
     if not Path(path).is_file():
         raise _Misuse(f"{what}: no such file: {path}")
     try:
+        if Path(path).suffix.lower() == ".toml":
+            return lpvid.FrfData.from_files(path, lines=lines)
         return lpvid.FrfData.load(path)
     except (ValueError, TypeError) as exc:
         raise _Misuse(f"{what}: {exc}") from exc
 
 
+def _labels(data: lpvid.FrfData) -> dict[str, Any]:
+    """Report labels from a manifest's names (none for .npz/.mat data)."""
+    prov = data.provenance or {}
+    params = prov.get("parameters")
+    return {
+        "inputs": prov.get("inputs"),
+        "outputs": prov.get("outputs"),
+        "p_label": ", ".join(params) if params else None,
+    }
+
+
 def _fit(args: argparse.Namespace) -> int:
     say = _printer(args.quiet)
-    data = _load(args.data, "data")
-    validation = _load(args.validation, "--validation") if args.validation else None
+    data = _load(args.data, "data", args.lines)
+    validation = _load(args.validation, "--validation", args.lines) if args.validation else None
     if args.order < 1:
         raise _Misuse(f"--order: expected a positive integer, got {args.order}")
     basis = _basis(args.basis, args.domain, data)
@@ -238,7 +266,9 @@ def _fit(args: argparse.Namespace) -> int:
         except (ValueError, TypeError) as exc:
             raise _Misuse(str(exc)) from exc
 
-    return _run(go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None)
+    return _run(
+        go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None, **_labels(data)
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -248,8 +278,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+    def say_warning(message: Any, category: Any, *rest: Any, **kw: Any) -> None:
+        print(f"lpvid {args.command}: warning: {message}", file=sys.stderr, flush=True)
+
     try:
-        return _demo(args) if args.command == "demo" else _fit(args)
+        # The command line shows lpvid's warnings as its own lines, whatever
+        # the interpreter's warning filters (they are part of the results).
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", lpvid.ConvergenceWarning)
+            warnings.showwarning = say_warning
+            return _demo(args) if args.command == "demo" else _fit(args)
     except _Misuse as exc:
         print(f"lpvid {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_MISUSE
