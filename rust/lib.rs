@@ -21,8 +21,10 @@ pub mod problem;
 pub mod response;
 pub mod simulate;
 pub mod socp;
+pub mod sum;
 #[doc(hidden)]
 pub mod testing;
+pub mod time;
 
 #[cfg(feature = "python")]
 mod python;
@@ -36,3 +38,5 @@ pub use lm::{levenberg_marquardt, LmSettings};
 pub use objective::{GaussNewton, Objective};
 pub use problem::Problem;
 pub use response::frequency_response;
+pub use sum::Sum;
+pub use time::{InitialState, Record, TimeProblem};

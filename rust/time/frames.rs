@@ -1,0 +1,254 @@
+//! The matrices of the recursion at every sample of a block: the state
+//! transition `Ad(t)`, the output matrix `C(t)`, the basis weights
+//! `[1, psi(t)]` and, for continuous-time models, the forcing vectors of
+//! the state columns (the derivative of the zero-order hold).
+
+use super::hold::Hold;
+use super::record::Record;
+use crate::error::{Error, Result};
+use crate::layout::{Matrix, Shape};
+use rayon::prelude::*;
+
+/// Samples per parallel task when the frames are filled.
+const FILL_BLOCK: usize = 64;
+
+/// The coefficient matrices `X(0..=Nb)` row-major, one after the other.
+#[derive(Debug, Clone)]
+pub(crate) struct Coefficients {
+    pub n: usize,
+    pub r: usize,
+    pub l: usize,
+    pub m: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
+}
+
+impl Coefficients {
+    /// From `theta` (checked by the caller).
+    pub fn new(shape: &Shape, theta: &[f64]) -> Coefficients {
+        let m = shape.n_coef();
+        let take = |x: Matrix| {
+            let (rows, cols) = shape.dims(x);
+            let mut out = vec![0.0; m * rows * cols];
+            for i in 0..m {
+                let block = &theta[shape.block(x, i)];
+                for row in 0..rows {
+                    for col in 0..cols {
+                        out[(i * rows + row) * cols + col] = block[row + col * rows];
+                    }
+                }
+            }
+            out
+        };
+        Coefficients {
+            n: shape.n,
+            r: shape.r,
+            l: shape.l,
+            m,
+            a: take(Matrix::A),
+            b: take(Matrix::B),
+            c: take(Matrix::C),
+        }
+    }
+
+    /// `out = sum_i w_i X(i)` for coefficient matrices of `size` entries.
+    fn combine(coefs: &[f64], size: usize, w: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(&coefs[..size]);
+        for (i, &wi) in w.iter().enumerate().skip(1) {
+            if wi != 0.0 {
+                let x = &coefs[i * size..(i + 1) * size];
+                out.iter_mut().zip(x).for_each(|(o, v)| *o += wi * v);
+            }
+        }
+    }
+}
+
+/// The frames of a block of samples.
+#[derive(Debug, Clone)]
+pub(crate) struct Frames {
+    n: usize,
+    l: usize,
+    m: usize,
+    s: usize,
+    /// `Ad(t)`, `n x n` row-major per sample.
+    ad: Vec<f64>,
+    /// `C(t)`, `l x n` row-major per sample.
+    c: Vec<f64>,
+    /// `[1, psi_1(t), ..., psi_Nb(t)]` per sample.
+    psi1: Vec<f64>,
+    /// Continuous time with state columns: `dt L(M, e_a e_b^T) z(t)` at
+    /// `((a s + b) n + c)` per sample; empty otherwise.
+    forcing: Vec<f64>,
+}
+
+impl Frames {
+    /// Room for `capacity` samples; `forcing` when the hold's derivative is needed.
+    pub fn new(coef: &Coefficients, capacity: usize, forcing: bool) -> Frames {
+        let (n, l, m) = (coef.n, coef.l, coef.m);
+        let s = n + coef.r;
+        Frames {
+            n,
+            l,
+            m,
+            s,
+            ad: vec![0.0; capacity * n * n],
+            c: vec![0.0; capacity * l * n],
+            psi1: vec![0.0; capacity * m],
+            forcing: if forcing {
+                vec![0.0; capacity * n * s * n]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// `Ad` at sample `k` of the block.
+    #[inline(always)]
+    pub fn ad(&self, k: usize) -> &[f64] {
+        let nn = self.n * self.n;
+        &self.ad[k * nn..(k + 1) * nn]
+    }
+
+    /// `C` at sample `k` of the block.
+    #[inline(always)]
+    pub fn c(&self, k: usize) -> &[f64] {
+        let ln = self.l * self.n;
+        &self.c[k * ln..(k + 1) * ln]
+    }
+
+    /// `[1, psi(t)]` at sample `k` of the block.
+    #[inline(always)]
+    pub fn psi1(&self, k: usize) -> &[f64] {
+        &self.psi1[k * self.m..(k + 1) * self.m]
+    }
+
+    /// The forcing vectors at sample `k` (continuous time), if computed.
+    #[inline(always)]
+    pub fn forcing(&self, k: usize) -> Option<&[f64]> {
+        let size = self.n * self.s * self.n;
+        (!self.forcing.is_empty()).then(|| &self.forcing[k * size..(k + 1) * size])
+    }
+
+    /// Fill samples `t0..t1` of `record`, in parallel. `hold` is the sample
+    /// time of a continuous-time model (None: discrete time); `states`
+    /// the nominal trajectory `(T + 1) x n`, needed for the forcing.
+    pub fn fill(
+        &mut self,
+        coef: &Coefficients,
+        record: &Record,
+        states: &[f64],
+        hold: Option<f64>,
+        (t0, t1): (usize, usize),
+    ) -> Result<()> {
+        let (n, l, m, s) = (self.n, self.l, self.m, self.s);
+        let (nn, ln, fs) = (n * n, l * n, n * s * n);
+        let len = t1 - t0;
+        let with_forcing = !self.forcing.is_empty();
+        let mut forcing_parts: Vec<&mut [f64]> = if with_forcing {
+            self.forcing[..len * fs]
+                .chunks_mut(FILL_BLOCK * fs)
+                .collect()
+        } else {
+            Vec::new()
+        };
+        forcing_parts.resize_with(len.div_ceil(FILL_BLOCK), Default::default);
+        let tasks: Vec<_> = self.ad[..len * nn]
+            .chunks_mut(FILL_BLOCK * nn)
+            .zip(self.c[..len * ln].chunks_mut(FILL_BLOCK * ln))
+            .zip(self.psi1[..len * m].chunks_mut(FILL_BLOCK * m))
+            .zip(forcing_parts)
+            .enumerate()
+            .collect();
+        let nb = m - 1;
+        tasks.into_par_iter().try_for_each_init(
+            || Sample::new(coef),
+            |work, (task, (((ad, c), psi1), forcing))| {
+                for (k, psi1) in psi1.chunks_exact_mut(m).enumerate() {
+                    let t = t0 + task * FILL_BLOCK + k;
+                    psi1[0] = 1.0;
+                    psi1[1..].copy_from_slice(&record.psi()[t * nb..(t + 1) * nb]);
+                    Coefficients::combine(&coef.c, ln, psi1, &mut c[k * ln..(k + 1) * ln]);
+                    let adk = &mut ad[k * nn..(k + 1) * nn];
+                    match hold {
+                        None => Coefficients::combine(&coef.a, nn, psi1, adk),
+                        Some(dt) => {
+                            let f = with_forcing.then(|| &mut forcing[k * fs..(k + 1) * fs]);
+                            work.hold(coef, record, states, dt, t, psi1, adk, f)
+                                .map_err(|e| {
+                                    Error::Numerical(format!("{e} (zero-order hold at sample {t})"))
+                                })?;
+                        }
+                    }
+                }
+                Ok(())
+            },
+        )
+    }
+}
+
+/// Per-thread scratch space of the continuous-time frames.
+struct Sample {
+    hold: Hold,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    m: Vec<f64>,
+    e: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl Sample {
+    fn new(coef: &Coefficients) -> Sample {
+        let (n, r) = (coef.n, coef.r);
+        let s = n + r;
+        Sample {
+            hold: Hold::new(n, r),
+            a: vec![0.0; n * n],
+            b: vec![0.0; n * r],
+            m: vec![0.0; s * s],
+            e: vec![0.0; s * s],
+            z: vec![0.0; s],
+        }
+    }
+
+    /// `Ad(t)` and, when asked, `dt L(M, e_a e_b^T) z(t)` into `forcing`.
+    #[allow(clippy::too_many_arguments)]
+    fn hold(
+        &mut self,
+        coef: &Coefficients,
+        record: &Record,
+        states: &[f64],
+        dt: f64,
+        t: usize,
+        psi1: &[f64],
+        ad: &mut [f64],
+        forcing: Option<&mut [f64]>,
+    ) -> Result<()> {
+        let (n, r) = (coef.n, coef.r);
+        let s = n + r;
+        Coefficients::combine(&coef.a, n * n, psi1, &mut self.a);
+        Coefficients::combine(&coef.b, n * r, psi1, &mut self.b);
+        self.m.fill(0.0);
+        for i in 0..n {
+            for j in 0..n {
+                self.m[i * s + j] = dt * self.a[i * n + j];
+            }
+            for j in 0..r {
+                self.m[i * s + n + j] = dt * self.b[i * r + j];
+            }
+        }
+        match forcing {
+            None => self.hold.compute(&self.m, None, &mut self.e, &mut [])?,
+            Some(f) => {
+                self.z[..n].copy_from_slice(&states[t * n..(t + 1) * n]);
+                self.z[n..].copy_from_slice(&record.u()[t * r..(t + 1) * r]);
+                self.hold.compute(&self.m, Some(&self.z), &mut self.e, f)?;
+                f.iter_mut().for_each(|v| *v *= dt);
+            }
+        }
+        for i in 0..n {
+            ad[i * n..(i + 1) * n].copy_from_slice(&self.e[i * s..i * s + n]);
+        }
+        Ok(())
+    }
+}
