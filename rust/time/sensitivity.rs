@@ -21,7 +21,7 @@ use super::StageTimes;
 use crate::error::Result;
 use faer::linalg::matmul::matmul;
 use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use std::time::Instant;
 
 /// Jacobian rows per block of samples (a multiple of 8).
@@ -51,138 +51,264 @@ pub(crate) struct Pass<'a> {
     pub columns: &'a Columns,
 }
 
+/// Columns advanced together: one register block of the kernels.
+const GROUP: usize = 8;
+
+/// `acc += w v`, with a fused multiply-add when `FUSED` (only where the
+/// CPU has it: elsewhere `mul_add` is a slow library call).
+#[inline(always)]
+fn axpy<const FUSED: bool>(acc: &mut [f64; GROUP], w: f64, v: &[f64]) {
+    for k in 0..GROUP {
+        acc[k] = if FUSED {
+            w.mul_add(v[k], acc[k])
+        } else {
+            acc[k] + w * v[k]
+        };
+    }
+}
+
 /// The state columns one thread advances.
 struct Slice {
     cols: Vec<StateColumn>,
     width: usize,
-    /// `S(t)`, `n x width` row-major.
+    /// Width rounded up to whole groups; the padding columns stay zero.
+    padded: usize,
+    /// `S(t)`, `n x padded` row-major.
     s: Vec<f64>,
     next: Vec<f64>,
-    tmp: Vec<f64>,
 }
 
 impl Slice {
     fn new(cols: &[StateColumn], n: usize) -> Slice {
         let width = cols.len();
-        let mut s = vec![0.0; n * width];
+        let padded = width.div_ceil(GROUP) * GROUP;
+        let mut s = vec![0.0; n * padded];
         for (k, col) in cols.iter().enumerate() {
             if let StateColumn::Initial { a } = *col {
-                s[a * width + k] = 1.0;
+                s[a * padded + k] = 1.0;
             }
         }
         Slice {
             cols: cols.to_vec(),
             width,
+            padded,
             s,
-            next: vec![0.0; n * width],
-            tmp: vec![0.0; width],
+            next: vec![0.0; n * padded],
         }
     }
 
-    /// Write the Jacobian rows of samples `t0..t1` into the slice's columns
-    /// of `jac` (column stride `ld`) and advance the recursion past `t1`.
+    /// Write the Jacobian rows of samples `t0..t1` into the slice's
+    /// columns of `jac` and advance the recursion past `t1`, with AVX2 and
+    /// FMA where the CPU has them (checked at run time).
     fn advance(
         &mut self,
         pass: &Pass<'_>,
         frames: &Frames,
-        (t0, t1): (usize, usize),
-        jac: &mut [f64],
-        ld: usize,
+        span: (usize, usize),
+        jac: MatMut<'_, f64>,
     ) {
+        let run = Advance {
+            slice: self,
+            pass,
+            frames,
+            span,
+            jac,
+        };
+        #[cfg(target_arch = "x86_64")]
+        if let Some(simd) = pulp::x86::V3::try_new() {
+            pulp::Simd::vectorize(simd, run);
+            return;
+        }
+        run.kernel::<false>();
+    }
+}
+
+/// One block of samples of one slice, as an operation that `pulp`
+/// compiles for the instruction set found at run time.
+struct Advance<'a, 'p> {
+    slice: &'a mut Slice,
+    pass: &'a Pass<'p>,
+    frames: &'a Frames,
+    span: (usize, usize),
+    jac: MatMut<'a, f64>,
+}
+
+impl pulp::WithSimd for Advance<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        // Only reached through an instruction set with FMA.
+        self.kernel::<true>();
+    }
+}
+
+impl Advance<'_, '_> {
+    #[inline(always)]
+    fn kernel<const FUSED: bool>(self) {
+        let Advance {
+            slice,
+            pass,
+            frames,
+            span: (t0, t1),
+            mut jac,
+        } = self;
         let (n, r, l) = (pass.coef.n, pass.coef.r, pass.coef.l);
-        let width = self.width;
+        let (width, padded) = (slice.width, slice.padded);
         let w = pass.record.weight();
         let u = pass.record.u();
         for t in t0..t1 {
             let k = t - t0;
+            // Outputs: row (k, j) of the block is w_j(t) C_j(t) S(t).
             let c = frames.c(k);
             for j in 0..l {
-                let row = k * l + j;
+                let row = jac
+                    .as_mut()
+                    .row_mut(k * l + j)
+                    .try_as_row_major_mut()
+                    .expect("the Jacobian block is row-major")
+                    .as_slice_mut();
                 if t < pass.skip {
-                    for col in 0..width {
-                        jac[col * ld + row] = 0.0;
-                    }
+                    row.fill(0.0);
                     continue;
                 }
-                self.tmp.fill(0.0);
-                for cc in 0..n {
-                    let coef = c[j * n + cc];
-                    let src = &self.s[cc * width..(cc + 1) * width];
-                    for (d, &v) in self.tmp.iter_mut().zip(src) {
-                        *d += coef * v;
-                    }
-                }
                 let wj = w[t * l + j];
-                for (col, &v) in self.tmp.iter().enumerate() {
-                    jac[col * ld + row] = wj * v;
-                }
-            }
-            let ad = frames.ad(k);
-            for a in 0..n {
-                let dst = &mut self.next[a * width..(a + 1) * width];
-                dst.fill(0.0);
-                for cc in 0..n {
-                    let coef = ad[a * n + cc];
-                    let src = &self.s[cc * width..(cc + 1) * width];
-                    for (d, &v) in dst.iter_mut().zip(src) {
-                        *d += coef * v;
+                let cj = &c[j * n..(j + 1) * n];
+                for g in (0..padded).step_by(GROUP) {
+                    let mut acc = [0.0; GROUP];
+                    for (cc, &coef) in cj.iter().enumerate() {
+                        axpy::<FUSED>(&mut acc, coef, &slice.s[cc * padded + g..][..GROUP]);
+                    }
+                    let m = GROUP.min(width - g);
+                    for (o, a) in row[g..g + m].iter_mut().zip(&acc) {
+                        *o = wj * a;
                     }
                 }
             }
+            // S(t+1) = Ad(t) S(t), a group of columns at a time.
+            let ad = frames.ad(k);
+            for g in (0..padded).step_by(GROUP) {
+                for a in 0..n {
+                    let mut acc = [0.0; GROUP];
+                    for (cc, &coef) in ad[a * n..(a + 1) * n].iter().enumerate() {
+                        axpy::<FUSED>(&mut acc, coef, &slice.s[cc * padded + g..][..GROUP]);
+                    }
+                    slice.next[a * padded + g..][..GROUP].copy_from_slice(&acc);
+                }
+            }
+            // + F(t).
             let psi1 = frames.psi1(k);
             match frames.forcing(k) {
                 None => {
-                    for (col, sc) in self.cols.iter().enumerate() {
+                    for (col, sc) in slice.cols.iter().enumerate() {
                         if let StateColumn::Theta { i, a, zb } = *sc {
                             let z = if zb < n {
                                 pass.states[t * n + zb]
                             } else {
                                 u[t * r + zb - n]
                             };
-                            self.next[a * width + col] += psi1[i] * z;
+                            slice.next[a * padded + col] += psi1[i] * z;
                         }
                     }
                 }
                 Some(f) => {
                     let s = n + r;
-                    for (col, sc) in self.cols.iter().enumerate() {
+                    for (col, sc) in slice.cols.iter().enumerate() {
                         if let StateColumn::Theta { i, a, zb } = *sc {
                             let v = &f[(a * s + zb) * n..(a * s + zb + 1) * n];
                             for cc in 0..n {
-                                self.next[cc * width + col] += psi1[i] * v[cc];
+                                slice.next[cc * padded + col] += psi1[i] * v[cc];
                             }
                         }
                     }
                 }
             }
-            std::mem::swap(&mut self.s, &mut self.next);
+            std::mem::swap(&mut slice.s, &mut slice.next);
         }
     }
 }
 
-/// The output columns' rows of samples `t0..t1`, one column after the other.
-fn output_columns(
+/// The output columns of one output `j`: their values `w_j(t) psi_i(t)
+/// z_b(t)` at the rows of output `j` (their other rows are zero), samples
+/// `t0..t1` row-major, zero before `skip`.
+fn output_values(
     pass: &Pass<'_>,
     frames: &Frames,
     (t0, t1): (usize, usize),
+    j: usize,
     cols: &[OutputColumn],
-    jac: &mut [f64],
-    ld: usize,
+    out: &mut [f64],
 ) {
     let (n, r, l) = (pass.coef.n, pass.coef.r, pass.coef.l);
     let w = pass.record.weight();
     let u = pass.record.u();
-    let rows = (t1 - t0) * l;
-    for (k, oc) in cols.iter().enumerate() {
-        let dst = &mut jac[k * ld..k * ld + rows];
-        dst.fill(0.0);
-        for t in t0.max(pass.skip)..t1 {
+    let width = cols.len();
+    for (t, row) in (t0..t1).zip(out.chunks_exact_mut(width)) {
+        if t < pass.skip {
+            row.fill(0.0);
+            continue;
+        }
+        let psi1 = frames.psi1(t - t0);
+        let wj = w[t * l + j];
+        for (o, oc) in row.iter_mut().zip(cols) {
             let z = if oc.zb < n {
                 pass.states[t * n + oc.zb]
             } else {
                 u[t * r + oc.zb - n]
             };
-            dst[(t - t0) * l + oc.j] = w[t * l + oc.j] * frames.psi1(t - t0)[oc.i] * z;
+            *o = wj * psi1[oc.i] * z;
+        }
+    }
+}
+
+/// `dst += a^T b` (`Lower`: the lower triangle only, for `a = b`).
+fn gram_add(dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, lower: bool, par: Par) {
+    if lower {
+        tri_matmul(
+            dst,
+            BlockStructure::TriangularLower,
+            Accum::Add,
+            a.transpose(),
+            BlockStructure::Rectangular,
+            b,
+            BlockStructure::Rectangular,
+            1.0,
+            par,
+        );
+    } else {
+        matmul(dst, Accum::Add, a.transpose(), b, 1.0, par);
+    }
+}
+
+/// The output columns grouped by the output they enter.
+struct ByOutput {
+    /// Positions (in `columns.output`) of the columns of output `j`.
+    index: Vec<Vec<usize>>,
+    cols: Vec<Vec<OutputColumn>>,
+    /// Their values in one block of samples, row-major.
+    values: Vec<Vec<f64>>,
+    /// `K_j^T J_s` (`len_j x n_state`), `K_j^T K_j` and `K_j^T r_j`.
+    cross: Vec<Mat<f64>>,
+    own: Vec<Mat<f64>>,
+    jtr: Vec<Mat<f64>>,
+}
+
+impl ByOutput {
+    fn new(output: &[OutputColumn], l: usize, n_state: usize, block: usize) -> ByOutput {
+        let index: Vec<Vec<usize>> = (0..l)
+            .map(|j| (0..output.len()).filter(|&k| output[k].j == j).collect())
+            .collect();
+        let cols: Vec<Vec<OutputColumn>> = index
+            .iter()
+            .map(|ix| ix.iter().map(|&k| output[k]).collect())
+            .collect();
+        ByOutput {
+            values: cols.iter().map(|c| vec![0.0; block * c.len()]).collect(),
+            cross: cols.iter().map(|c| Mat::zeros(c.len(), n_state)).collect(),
+            own: cols.iter().map(|c| Mat::zeros(c.len(), c.len())).collect(),
+            jtr: cols.iter().map(|c| Mat::zeros(c.len(), 1)).collect(),
+            index,
+            cols,
         }
     }
 }
@@ -195,10 +321,8 @@ impl Pass<'_> {
         let kcols = self.columns.len();
         let n_state = self.columns.state.len();
         let block = (BLOCK_ROWS / l).max(8);
-        // Column stride: a multiple of 8 plus 8, so that the columns of a
-        // block do not all map to the same cache sets.
-        let ld = (block * l).div_ceil(8) * 8 + 8;
-        let mut jac = vec![0.0; ld * kcols];
+        // The state columns' rows of a block, row-major (row (t, j) at t l + j).
+        let mut jac = vec![0.0; block * l * n_state];
         let mut rr = vec![0.0; block * l];
         let threads = rayon::current_num_threads().max(1);
         let pieces = threads.min(n_state).max(1);
@@ -209,40 +333,39 @@ impl Pass<'_> {
             })
             .filter(|s| s.width > 0)
             .collect();
+        let mut outs = ByOutput::new(&self.columns.output, l, n_state, block);
         let forcing = self.hold.is_some() && self.columns.theta_state > 0;
         let mut frames = Frames::new(self.coef, block, forcing);
-        let mut gram = Mat::<f64>::zeros(kcols, kcols);
-        let mut jtr = Mat::<f64>::zeros(kcols, 1);
+        let mut gss = Mat::<f64>::zeros(n_state, n_state);
+        let mut jtr_s = Mat::<f64>::zeros(n_state, 1);
         for t0 in (0..total).step_by(block) {
             let t1 = (t0 + block).min(total);
+            let (len, rows) = (t1 - t0, (t1 - t0) * l);
             let clock = Instant::now();
             frames.fill(self.coef, self.record, self.states, self.hold, (t0, t1))?;
             times.discretisation += clock.elapsed().as_secs_f64();
             let clock = Instant::now();
-            let (state_part, out_part) = jac.split_at_mut(n_state * ld);
+            let mut rest =
+                MatMut::from_row_major_slice_mut(&mut jac[..rows * n_state], rows, n_state);
             let mut parts = Vec::with_capacity(slices.len());
-            let mut rest = state_part;
             for s in &slices {
-                let (head, tail) = rest.split_at_mut(s.width * ld);
+                let (head, tail) = rest.split_at_col_mut(s.width);
                 parts.push(head);
                 rest = tail;
             }
             let frames_ref = &frames;
             rayon::scope(|scope| {
                 for (slice, part) in slices.iter_mut().zip(parts) {
-                    scope.spawn(move |_| slice.advance(self, frames_ref, (t0, t1), part, ld));
+                    scope.spawn(move |_| slice.advance(self, frames_ref, (t0, t1), part));
                 }
-                if !self.columns.output.is_empty() {
-                    scope.spawn(move |_| {
-                        output_columns(
-                            self,
-                            frames_ref,
-                            (t0, t1),
-                            &self.columns.output,
-                            out_part,
-                            ld,
-                        )
-                    });
+                for (j, (cols, values)) in outs.cols.iter().zip(outs.values.iter_mut()).enumerate()
+                {
+                    if !cols.is_empty() {
+                        let out = &mut values[..len * cols.len()];
+                        scope.spawn(move |_| {
+                            output_values(self, frames_ref, (t0, t1), j, cols, out)
+                        });
+                    }
                 }
             });
             times.sensitivities += clock.elapsed().as_secs_f64();
@@ -250,7 +373,6 @@ impl Pass<'_> {
                 continue;
             }
             let clock = Instant::now();
-            let rows = (t1 - t0) * l;
             for (k, v) in rr[..rows].iter_mut().enumerate() {
                 let t = t0 + k / l;
                 *v = if t < self.skip {
@@ -259,38 +381,64 @@ impl Pass<'_> {
                     self.residual[t0 * l + k]
                 };
             }
-            let jm = MatRef::from_column_major_slice_with_stride(
-                &jac[..(kcols - 1) * ld + rows],
-                rows,
-                kcols,
-                ld,
-            );
-            tri_matmul(
-                gram.as_mut(),
-                BlockStructure::TriangularLower,
-                Accum::Add,
-                jm.transpose(),
-                BlockStructure::Rectangular,
-                jm,
-                BlockStructure::Rectangular,
-                1.0,
-                Par::rayon(0),
-            );
+            let js = MatRef::from_row_major_slice(&jac[..rows * n_state], rows, n_state);
             let rm = MatRef::from_column_major_slice(&rr[..rows], rows, 1);
-            matmul(jtr.as_mut(), Accum::Add, jm.transpose(), rm, 1.0, Par::Seq);
+            if n_state > 0 {
+                gram_add(gss.as_mut(), js, js, true, Par::rayon(0));
+                gram_add(jtr_s.as_mut(), js, rm, false, Par::Seq);
+            }
+            // Output columns: nonzero only in the rows of their output.
+            for j in 0..l {
+                let width = outs.cols[j].len();
+                if width == 0 {
+                    continue;
+                }
+                let kj = MatRef::from_row_major_slice(&outs.values[j][..len * width], len, width);
+                let rj = MatRef::from_row_major_slice_with_stride(&rr[j..rows], len, 1, l);
+                if n_state > 0 {
+                    let jsj = MatRef::from_row_major_slice_with_stride(
+                        &jac[j * n_state..rows * n_state],
+                        len,
+                        n_state,
+                        l * n_state,
+                    );
+                    gram_add(outs.cross[j].as_mut(), kj, jsj, false, Par::rayon(0));
+                }
+                gram_add(outs.own[j].as_mut(), kj, kj, true, Par::Seq);
+                gram_add(outs.jtr[j].as_mut(), kj, rj, false, Par::Seq);
+            }
             times.gram += clock.elapsed().as_secs_f64();
         }
+        // Assemble in engine order: state columns, then output columns.
         let mut full = vec![0.0; kcols * kcols];
-        for j in 0..kcols {
-            for i in j..kcols {
-                full[i + j * kcols] = gram[(i, j)];
-                full[j + i * kcols] = gram[(i, j)];
+        let mut put = |a: usize, b: usize, v: f64| {
+            full[a + b * kcols] = v;
+            full[b + a * kcols] = v;
+        };
+        for b in 0..n_state {
+            for a in b..n_state {
+                put(a, b, gss[(a, b)]);
+            }
+        }
+        let mut jtr: Vec<f64> = (0..n_state).map(|i| jtr_s[(i, 0)]).collect();
+        jtr.resize(kcols, 0.0);
+        for j in 0..l {
+            let ix = &outs.index[j];
+            for (p, &q) in ix.iter().enumerate() {
+                let row = n_state + q;
+                for b in 0..n_state {
+                    put(row, b, outs.cross[j][(p, b)]);
+                }
+                for (p2, &q2) in ix.iter().enumerate().take(p + 1) {
+                    put(row, n_state + q2, outs.own[j][(p, p2)]);
+                }
+                jtr[row] = outs.jtr[j][(p, 0)];
             }
         }
         Ok(Normal {
             k: kcols,
             gram: full,
-            jtr: (0..kcols).map(|i| jtr[(i, 0)]).collect(),
+            jtr,
         })
     }
 }
