@@ -275,7 +275,7 @@ fn a_diverging_model_is_an_error_naming_the_record_and_sample() {
             text.starts_with("model: diverges along time record 1"),
             "{text}"
         );
-        assert!(text.contains("from sample"), "{text}");
+        assert!(text.contains(" sample "), "{text}");
     }
 }
 

@@ -30,6 +30,9 @@ from lpvid.model import LpvModel
 from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
+from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls
+from lpvid.timedata import TimeData
+from lpvid.timefit import fit_time
 
 __version__ = "0.1.0"
 
@@ -51,6 +54,8 @@ __all__ = [
     "PathResult",
     "Polynomial",
     "SingularModelError",
+    "TimeCost",
+    "TimeData",
     "__version__",
     "consistency",
     "datasets",
@@ -58,6 +63,7 @@ __all__ = [
     "fd_subspace",
     "fit_l21",
     "fit_nls",
+    "fit_time",
     "fixed_mask",
     "free_mask",
     "global_start",
@@ -65,6 +71,7 @@ __all__ = [
     "identify_lti",
     "initial",
     "initial_candidates",
+    "initial_states",
     "l21_path",
     "multisine",
     "plots",
@@ -73,5 +80,7 @@ __all__ = [
     "residual",
     "smile",
     "smile_candidates",
+    "time_residual",
+    "time_vnls",
     "vnls",
 ]

@@ -1,10 +1,11 @@
 """Type stub of the compiled core (private)."""
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 from numpy.typing import NDArray
+from typing_extensions import Self
 
 class SingularModelError(ArithmeticError): ...
 
@@ -52,18 +53,55 @@ class Problem:
         self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
 
+@final
+class TimeProblem:
+    def __new__(
+        cls,
+        n: int,
+        r: int,
+        l: int,
+        nb: int,
+        u: list[NDArray[np.float64]],
+        psi: list[NDArray[np.float64]],
+        y: list[NDArray[np.float64]],
+        sigma: list[NDArray[np.float64]],
+        dt: float | None = None,
+        x0: str = "estimate",
+        x0_values: NDArray[np.float64] | None = None,
+        skip: int = 0,
+    ) -> Self: ...
+    @property
+    def n_residuals(self) -> int: ...
+    def vnls(self, theta: NDArray[np.float64]) -> float: ...
+    def residual(self, theta: NDArray[np.float64]) -> NDArray[np.float64]: ...
+    def initial_states(self, theta: NDArray[np.float64]) -> NDArray[np.float64]: ...
+    def gauss_newton(
+        self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.float64], dict[str, float]]: ...
+
+@final
+class SumProblem:
+    def __new__(cls, frf: Problem, time: TimeProblem) -> Self: ...
+    @property
+    def n_residuals(self) -> int: ...
+    def vnls(self, theta: NDArray[np.float64]) -> float: ...
+    def gauss_newton(
+        self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
+    ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
+
+_AnyProblem = Problem | TimeProblem | SumProblem
 Settings = dict[str, float | int | str]
 Callback = Callable[[dict[str, Any]], Any] | None
 
 def fit_nls(
-    problem: Problem,
+    problem: _AnyProblem,
     theta: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
     settings: Settings,
     callback: Callback = None,
 ) -> dict[str, Any]: ...
 def fit_l21(
-    problem: Problem,
+    problem: _AnyProblem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
@@ -71,7 +109,7 @@ def fit_l21(
     callback: Callback = None,
 ) -> dict[str, Any]: ...
 def l21_path(
-    problem: Problem,
+    problem: _AnyProblem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     gammas: NDArray[np.float64],
@@ -81,7 +119,7 @@ def l21_path(
 ) -> list[tuple[float, dict[str, Any]]]: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
-    problem: Problem,
+    problem: _AnyProblem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,

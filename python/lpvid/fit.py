@@ -15,15 +15,15 @@ import numpy as np
 
 from lpvid import _core
 from lpvid._checks import positive_float, positive_int, real_array
-from lpvid.cost import build_problem
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
+from lpvid.timecost import combined_problem
 
-__all__ = ["fit_nls", "fit_l21", "l21_path", "raise_if_interrupted"]
+__all__ = ["fit_nls", "fit_l21", "l21_path", "lm_settings", "raise_if_interrupted"]
 
 Callback = Callable[[dict[str, Any]], Any]
 R = TypeVar("R", FitResult, L21Result)
@@ -105,6 +105,19 @@ def warn_if_unconverged(result: FitResult, what: str, stacklevel: int = 3) -> bo
     return True
 
 
+def lm_settings(
+    max_iter: int, xtol: float, ftol: float, gtol: float, lambda0: float
+) -> dict[str, Any]:
+    """The Levenberg-Marquardt settings as the core reads them, checked."""
+    return dict(
+        max_iter=positive_int(max_iter, "max_iter"),
+        xtol=positive_float(xtol, "xtol", allow_zero=True),
+        ftol=positive_float(ftol, "ftol", allow_zero=True),
+        gtol=positive_float(gtol, "gtol", allow_zero=True),
+        lambda0=positive_float(lambda0, "lambda0"),
+    )
+
+
 def fit_nls(
     model: LpvModel,
     data: FrfData,
@@ -117,6 +130,7 @@ def fit_nls(
     lambda0: float = 1e-2,
     callback: Callback | None = None,
     warn: bool = True,
+    time_data: Any = None,
 ) -> FitResult:
     """Minimise V_NLS by Levenberg-Marquardt (method.md (11)).
 
@@ -151,6 +165,10 @@ def fit_nls(
     warn : bool
         Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at
         ``max_iter`` with V_NLS still falling (default True).
+    time_data : TimeData or TimeCost, optional
+        Time records beside the FRF data: the fit then minimises V_NLS plus
+        their output error (see :func:`lpvid.fit_time`), ``result.vnls``
+        is that sum and ``result.noise_floor`` the sum of both floors.
 
     Returns
     -------
@@ -161,16 +179,10 @@ def fit_nls(
     ValueError
         On bad arguments, or when V_NLS is not finite at the start.
     """
-    settings = dict(
-        max_iter=positive_int(max_iter, "max_iter"),
-        xtol=positive_float(xtol, "xtol", allow_zero=True),
-        ftol=positive_float(ftol, "ftol", allow_zero=True),
-        gtol=positive_float(gtol, "gtol", allow_zero=True),
-        lambda0=positive_float(lambda0, "lambda0"),
-    )
-    problem = build_problem(model, data)
+    settings = lm_settings(max_iter, xtol, ftol, gtol, lambda0)
+    problem, floor = combined_problem(model, data, time_data)
     raw = _core.fit_nls(problem, model.theta, free_mask(model, fixed), settings, _monitor(callback))
-    result = FitResult._from_core(raw, model, data.n_residuals)
+    result = FitResult._from_core(raw, model, floor)
     if warn:
         warn_if_unconverged(result, "fit_nls")
     return result
@@ -187,7 +199,7 @@ def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any,
 def _l21_result(
     raw: dict[str, Any],
     model: LpvModel,
-    data: FrfData,
+    noise_floor: int,
     gamma: float,
     p_range: Any,
     threshold: float,
@@ -196,7 +208,7 @@ def _l21_result(
     return L21Result._from_core(
         raw,
         model,
-        data.n_residuals,
+        noise_floor,
         gamma=float(gamma),
         weights=np.asarray(raw["weights"]),
         group_norms=fitted.group_norms(p_range),
@@ -215,6 +227,7 @@ def fit_l21(
     p_range: Any = None,
     callback: Callback | None = None,
     warn: bool = True,
+    time_data: Any = None,
     **options: Any,
 ) -> L21Result:
     """Reweighted l2,1-regularised fit: Algorithm 1 of the paper (method.md section 4).
@@ -226,11 +239,12 @@ def fit_l21(
     decreases; a cone solve that fails is a rejected step.
 
     **Scale of gamma.** ``M = data.n_residuals`` is the number of complex
-    residuals, so ``V_NLS / M`` is about 1 at the noise floor whatever the
-    amount of data. With the relative weights each group in use costs
-    about ``gamma``: a group is kept only when it lowers V_NLS by more than
-    about ``gamma * M`` (``gamma = 1e-3`` asks for 0.1 % of M). The paper's
-    raw gamma equals ``gamma * M``.
+    residuals (plus the real residuals of ``time_data``), so ``V_NLS / M``
+    is about 1 at the noise floor whatever the amount of data. With the
+    relative weights each group in use costs about ``gamma``: a group is
+    kept only when it lowers V_NLS by more than about ``gamma * M``
+    (``gamma = 1e-3`` asks for 0.1 % of M). The paper's raw gamma equals
+    ``gamma * M``.
 
     **Stopping.** The inner loop ends on a small step or a small relative
     decrease of the objective; the outer loop ends when the weights stop
@@ -262,6 +276,10 @@ def fit_l21(
     warn : bool
         Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at its
         iteration limit with the objective still falling (default True).
+    time_data : TimeData or TimeCost, optional
+        Time records beside the FRF data: the cost is then V_NLS plus their
+        output error and ``M`` the sum of both noise floors (as in
+        :func:`fit_nls`).
     **options
         Fields of :class:`lpvid.L21Settings` to change, e.g. ``eps=1e-4``,
         ``weights="scaled"``, ``max_outer=5``.
@@ -279,11 +297,11 @@ def fit_l21(
     g = positive_float(gamma, "gamma", allow_zero=True)
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
-    problem = build_problem(model, data)
+    problem, floor = combined_problem(model, data, time_data)
     raw = _core.fit_l21(
         problem, model.theta, sup, free_mask(model, fixed), s.to_core(g), _monitor(callback)
     )
-    result = _l21_result(raw, model, data, g, rng, s.threshold)
+    result = _l21_result(raw, model, floor, g, rng, s.threshold)
     if warn:
         warn_if_unconverged(result, f"fit_l21 (gamma = {g:g})")
     return result
@@ -299,13 +317,14 @@ def l21_path(
     p_range: Any = None,
     callback: Callback | None = None,
     warn: bool = True,
+    time_data: Any = None,
     **options: Any,
 ) -> PathResult:
     """A warm-started sweep of :func:`fit_l21` from the largest gamma to the smallest.
 
     Each fit starts from the previous result, as in section 5.3 of the
-    paper; the weights are recomputed at each start. Arguments as in
-    :func:`fit_l21`; Ctrl-C stops the sweep and returns the fits so far
+    paper; the weights are recomputed at each start. Arguments (including
+    ``time_data``) as in :func:`fit_l21`; Ctrl-C stops the sweep and returns the fits so far
     (the last one interrupted).
 
     Returns
@@ -318,11 +337,11 @@ def l21_path(
         raise ValueError("gammas: needs at least one value, all >= 0")
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
-    problem = build_problem(model, data)
+    problem, floor = combined_problem(model, data, time_data)
     raws = _core.l21_path(
         problem, model.theta, sup, gs, free_mask(model, fixed), s.to_core(), _monitor(callback)
     )
-    results = [_l21_result(raw, model, data, g, rng, s.threshold) for g, raw in raws]
+    results = [_l21_result(raw, model, floor, g, rng, s.threshold) for g, raw in raws]
     if warn:
         for r in results:
             warn_if_unconverged(r, f"l21_path (gamma = {r.gamma:g})")

@@ -21,7 +21,7 @@ from lpvid.basis import Basis
 from lpvid.cost import vnls
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
-from lpvid.fit import fit_l21, raise_if_interrupted, warn_if_unconverged
+from lpvid.fit import fit_l21, fit_nls, raise_if_interrupted, warn_if_unconverged
 from lpvid.frozen import frozen_stable
 from lpvid.initial.candidates import ROUTES, Candidate, initial_candidates
 from lpvid.initial.choice import choose
@@ -32,6 +32,7 @@ from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
 from lpvid.schedule import between_points
 from lpvid.settings import L21Settings
+from lpvid.timecost import TimeCost, check_time_data, total_vnls
 
 __all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
 
@@ -113,6 +114,10 @@ class IdentifyResult:
         The l2,1 path.
     data, validation : FrfData, FrfData or None
         The data used.
+    time_data : TimeCost or None
+        The time records fitted beside the FRF data, when given: then the
+        unregularised fit, the path, V_NLS and the noise floors of
+        :attr:`entries` are those of both costs summed.
     timings : dict
         Seconds per stage: ``"local_s"``, ``"smile_s"``, ``"nls_s"``,
         ``"path_s"``, ``"total_s"``.
@@ -132,6 +137,7 @@ class IdentifyResult:
     data: FrfData
     validation: FrfData | None
     timings: dict[str, float] = field(default_factory=dict)
+    time_data: TimeCost | None = None
 
     @property
     def entry(self) -> PathEntry:
@@ -163,6 +169,15 @@ class IdentifyResult:
         e = self.entry
         lines = [
             f"start: {self.start} ({self.initial_reason})",
+            *(
+                []
+                if self.time_data is None
+                else [
+                    f"data: FRFs at {self.data.n_points} points and "
+                    f"{self.time_data.data.n_records} time record(s); V_NLS and the noise "
+                    "floor below are the sums of both costs"
+                ]
+            ),
             f"chosen: gamma = {e.gamma:g}, {e.n_groups} groups kept "
             f"(the SMILE model uses {self.initial.group_norms().count()}); {self.reason}",
             f"V_NLS = {e.vnls:.6g} on identification data (noise floor {e.noise_floor}, "
@@ -263,6 +278,7 @@ def identify(
     tolerance: float = 0.1,
     settings: L21Settings | None = None,
     progress: Progress | None = None,
+    time_data: Any = None,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
@@ -281,6 +297,12 @@ def identify(
        ``validation`` data, the simplest model whose validation V_NLS is
        within ``tolerance`` of the best; without, the knee of the
        accuracy-versus-number-of-groups curve.
+
+    With ``time_data`` (records along a varying scheduling trajectory),
+    steps 1-2 use the FRF data alone; the chosen start is then refined on
+    the sum of both costs (:func:`~lpvid.fit_nls` with ``time_data``), and
+    the path and the choice run on that sum, each part weighted by its own
+    noise.
 
     Parameters
     ----------
@@ -312,6 +334,8 @@ def identify(
     progress : callable, optional
         Called with a short message at every stage and every fit on the
         path (the same messages go to the ``lpvid`` logger at INFO).
+    time_data : TimeData or TimeCost, optional
+        Time records of the same system (see :func:`lpvid.fit_time`).
 
     Returns
     -------
@@ -341,6 +365,7 @@ def identify(
     if gs.size == 0 or np.any(gs <= 0):
         raise ValueError("gammas: needs at least one value, all > 0")
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    time_cost = None if time_data is None else check_time_data(data, time_data)
     l21 = L21Settings.of(settings if settings is not None else L21Settings(max_outer=10))
     if data.n_points < len(basis) + 1:
         raise ValueError(
@@ -370,18 +395,25 @@ def identify(
         val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
         _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{'' if c.stable else ', unstable'}")
     timings["nls_s"] = nls.timings["total_s"]
+    if time_cost is not None:
+        _say(progress, f"refining the {start.name} start on the FRFs and the time records")
+        nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
+        warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
+        timings["nls_s"] += nls.timings["total_s"]
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
     # The path of l21_path, run here one gamma at a time to report progress.
     results = []
     current = nls.model
-    entries = [_entry(0.0, nls, data, validation, l21.threshold)]
+    entries = [_entry(0.0, nls, data, validation, l21.threshold, time_cost)]
     for g in sorted(gs, reverse=True):
-        r = raise_if_interrupted(fit_l21(current, data, g, l21, fixed, warn=False))
+        r = raise_if_interrupted(
+            fit_l21(current, data, g, l21, fixed, warn=False, time_data=time_cost)
+        )
         results.append(r)
         current = r.model
-        entries.append(_entry(r.gamma, r, data, validation, l21.threshold))
+        entries.append(_entry(r.gamma, r, data, validation, l21.threshold, time_cost))
         warn_if_unconverged(r, f"the l2,1 fit at gamma = {r.gamma:g}", stacklevel=2)
         _say(
             progress,
@@ -415,6 +447,7 @@ def identify(
         data=data,
         validation=validation,
         timings=timings,
+        time_data=time_cost,
     )
 
 
@@ -424,14 +457,16 @@ def _entry(
     data: FrfData,
     validation: FrfData | None,
     threshold: float,
+    time_cost: TimeCost | None = None,
 ) -> PathEntry:
     model = fit.model
     norms = model.group_norms()
+    time_floor = 0 if time_cost is None else time_cost.n_residuals
     return PathEntry(
         gamma=float(gamma),
         model=model,
-        vnls=vnls(model, data),
-        noise_floor=data.n_residuals,
+        vnls=total_vnls(model, data, time_cost),
+        noise_floor=data.n_residuals + time_floor,
         validation_vnls=None if validation is None else vnls(model, validation),
         validation_floor=None if validation is None else validation.n_residuals,
         n_groups=norms.count(threshold),

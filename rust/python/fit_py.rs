@@ -4,10 +4,10 @@
 //! Ctrl-C.
 
 use super::convert::{bool_vec, real_vec, to_py};
-use super::problem_py::PyProblem;
+use super::time_py::target;
 use crate::fit::{Fit, Iteration, Monitor, StepKind, Stop};
 use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
-use crate::layout::FreeSet;
+use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, LmSettings};
 use numpy::PyReadonlyArray1;
 use pyo3::conversion::FromPyObjectOwned;
@@ -149,9 +149,9 @@ fn fit_dict<'py>(py: Python<'py>, fit: Fit, signalled: bool) -> PyResult<Bound<'
     Ok(d)
 }
 
-fn free_set(problem: &PyProblem, free: Option<PyReadonlyArray1<'_, bool>>) -> PyResult<FreeSet> {
+fn free_set(shape: &Shape, free: Option<PyReadonlyArray1<'_, bool>>) -> PyResult<FreeSet> {
     let mask = free.as_ref().map(bool_vec);
-    Ok(FreeSet::for_shape(problem.inner.shape(), mask.as_deref())?)
+    Ok(FreeSet::for_shape(shape, mask.as_deref())?)
 }
 
 fn weighting(name: &str) -> PyResult<Weighting> {
@@ -269,18 +269,20 @@ fn l21_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 #[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None))]
 fn fit_nls_py<'py>(
     py: Python<'py>,
-    problem: &PyProblem,
+    problem: &Bound<'py, PyAny>,
     theta: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
-    let free = free_set(problem, free)?;
+    let target = target(problem)?;
+    let problem = target.objective();
+    let free = free_set(problem.shape(), free)?;
     let settings = lm_settings(settings)?;
     let (fit, signalled) = with_monitor(py, callback, |monitor| {
-        problem.inner.shape().check_theta(&theta)?;
-        levenberg_marquardt(&problem.inner, &theta, &free, &settings, monitor)
+        problem.shape().check_theta(&theta)?;
+        levenberg_marquardt(problem, &theta, &free, &settings, monitor)
     })?;
     fit_dict(py, fit, signalled)
 }
@@ -290,7 +292,7 @@ fn fit_nls_py<'py>(
 #[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None))]
 fn fit_l21_py<'py>(
     py: Python<'py>,
-    problem: &PyProblem,
+    problem: &Bound<'py, PyAny>,
     theta: PyReadonlyArray1<'py, f64>,
     sup_norms: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
@@ -299,10 +301,12 @@ fn fit_l21_py<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
-    let free = free_set(problem, free)?;
+    let target = target(problem)?;
+    let problem = target.objective();
+    let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
     let (fit, signalled) = with_monitor(py, callback, |monitor| {
-        fit_l21(&problem.inner, &theta, &free, &sup, &settings, monitor)
+        fit_l21(problem, &theta, &free, &sup, &settings, monitor)
     })?;
     fit_dict(py, fit, signalled)
 }
@@ -313,7 +317,7 @@ fn fit_l21_py<'py>(
 #[allow(clippy::too_many_arguments)]
 fn l21_path_py<'py>(
     py: Python<'py>,
-    problem: &PyProblem,
+    problem: &Bound<'py, PyAny>,
     theta: PyReadonlyArray1<'py, f64>,
     sup_norms: PyReadonlyArray1<'py, f64>,
     gammas: PyReadonlyArray1<'py, f64>,
@@ -324,11 +328,13 @@ fn l21_path_py<'py>(
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
     let gammas = real_vec(&gammas);
-    let free = free_set(problem, free)?;
+    let target = target(problem)?;
+    let problem = target.objective();
+    let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
     let (fits, signalled) = with_monitor(py, callback, |monitor| {
         l21_path(
-            &problem.inner,
+            problem,
             &theta,
             &free,
             &sup,
@@ -351,7 +357,7 @@ fn l21_path_py<'py>(
 #[pyo3(name = "cone_step", signature = (problem, theta, sup_norms, free, settings, mu))]
 fn cone_step_py<'py>(
     py: Python<'py>,
-    problem: &PyProblem,
+    problem: &Bound<'py, PyAny>,
     theta: PyReadonlyArray1<'py, f64>,
     sup_norms: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
@@ -360,10 +366,12 @@ fn cone_step_py<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
-    let free = free_set(problem, free)?;
+    let target = target(problem)?;
+    let problem = target.objective();
+    let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
     let report =
-        py.detach(|| single_cone_step(&problem.inner, &theta, &free, &sup, &settings, mu))?;
+        py.detach(|| single_cone_step(problem, &theta, &free, &sup, &settings, mu))?;
     let groups = &report.groups;
     let d = PyDict::new(py);
     d.set_item("step", report.step.map(|s| to_py(py, s)))?;

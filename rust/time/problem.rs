@@ -12,6 +12,10 @@ use crate::objective::{GaussNewton, Objective};
 use crate::simulate::{simulate, simulate_zoh, Trajectory};
 use std::time::Instant;
 
+/// Largest weighted residual accepted: beyond it the cost of a record
+/// would overflow, and the model counts as diverging.
+const LARGEST_RESIDUAL: f64 = 1e150;
+
 /// Time records of one system, the model shape, the time domain and how
 /// the initial states and the first samples are treated.
 #[derive(Debug, Clone)]
@@ -134,16 +138,30 @@ impl TimeProblem {
         Ok(traj)
     }
 
-    /// The weighted residual of a simulated record, zero before `skip`.
-    fn residual_of(&self, k: usize, y: &[f64]) -> Vec<f64> {
+    /// The weighted residual of a simulated record, zero before `skip`; an
+    /// error naming the sample where it grows past [`LARGEST_RESIDUAL`]
+    /// (its square would leave the floating-point range).
+    fn residual_of(&self, k: usize, y: &[f64]) -> Result<Vec<f64>> {
         let rec = &self.records[k];
         let l = self.shape.l;
-        y.iter()
+        let r: Vec<f64> = y
+            .iter()
             .zip(rec.y())
             .zip(rec.weight())
             .enumerate()
             .map(|(e, ((m, d), w))| if e / l < self.skip { 0.0 } else { (m - d) * w })
-            .collect()
+            .collect();
+        if let Some(e) = r.iter().position(|v| !(v.abs() <= LARGEST_RESIDUAL)) {
+            return Err(invalid(
+                "model",
+                format!(
+                    "diverges along time record {k}: its output error exceeds {LARGEST_RESIDUAL:e} \
+                     sigma at sample {} (the model is unstable along this scheduling trajectory)",
+                    e / l
+                ),
+            ));
+        }
+        Ok(r)
     }
 
     /// Simulate record `k` at `theta` from its initial state (estimated,
@@ -164,7 +182,7 @@ impl TimeProblem {
                 let clock = Instant::now();
                 let rest = self.simulate(theta, k, &vec![0.0; n], false)?;
                 times.simulation += clock.elapsed().as_secs_f64();
-                let residual = self.residual_of(k, &rest.y);
+                let residual = self.residual_of(k, &rest.y)?;
                 let columns = Columns::initial_only(n);
                 let normal = self.pass(coef, k, &[], &residual, &columns, times)?;
                 let x0 = estimate(&normal)?;
@@ -184,7 +202,7 @@ impl TimeProblem {
         times.simulation += clock.elapsed().as_secs_f64();
         Ok(Evaluated {
             x0,
-            residual: self.residual_of(k, &traj.y),
+            residual: self.residual_of(k, &traj.y)?,
             states: traj.x.unwrap_or_default(),
         })
     }
