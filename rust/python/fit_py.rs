@@ -333,15 +333,7 @@ fn l21_path_py<'py>(
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
     let (fits, signalled) = with_monitor(py, callback, |monitor| {
-        l21_path(
-            problem,
-            &theta,
-            &free,
-            &sup,
-            &gammas,
-            &settings,
-            monitor,
-        )
+        l21_path(problem, &theta, &free, &sup, &gammas, &settings, monitor)
     })?;
     let out = PyList::empty(py);
     for (gamma, fit) in fits {
@@ -370,8 +362,7 @@ fn cone_step_py<'py>(
     let problem = target.objective();
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
-    let report =
-        py.detach(|| single_cone_step(problem, &theta, &free, &sup, &settings, mu))?;
+    let report = py.detach(|| single_cone_step(problem, &theta, &free, &sup, &settings, mu))?;
     let groups = &report.groups;
     let d = PyDict::new(py);
     d.set_item("step", report.step.map(|s| to_py(py, s)))?;

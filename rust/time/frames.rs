@@ -9,7 +9,9 @@ use crate::error::{Error, Result};
 use crate::layout::{Matrix, Shape};
 use rayon::prelude::*;
 
-/// Samples per parallel task when the frames are filled.
+/// Samples per parallel task when the frames are filled (the hold of a
+/// continuous-time model costs far more per sample than a discrete-time
+/// frame; 64 keeps both cores busy on one block of samples either way).
 const FILL_BLOCK: usize = 64;
 
 /// The coefficient matrices `X(0..=Nb)` row-major, one after the other.
@@ -162,8 +164,8 @@ impl Frames {
             .collect();
         let nb = m - 1;
         tasks.into_par_iter().try_for_each_init(
-            || Sample::new(coef),
-            |work, (task, (((ad, c), psi1), forcing))| {
+            || None,
+            |work: &mut Option<Sample>, (task, (((ad, c), psi1), forcing))| {
                 for (k, psi1) in psi1.chunks_exact_mut(m).enumerate() {
                     let t = t0 + task * FILL_BLOCK + k;
                     psi1[0] = 1.0;
@@ -174,7 +176,8 @@ impl Frames {
                         None => Coefficients::combine(&coef.a, nn, psi1, adk),
                         Some(dt) => {
                             let f = with_forcing.then(|| &mut forcing[k * fs..(k + 1) * fs]);
-                            work.hold(coef, record, states, dt, t, psi1, adk, f)
+                            work.get_or_insert_with(|| Sample::new(coef))
+                                .hold(coef, record, states, dt, t, psi1, adk, f)
                                 .map_err(|e| {
                                     Error::Numerical(format!("{e} (zero-order hold at sample {t})"))
                                 })?;

@@ -151,7 +151,10 @@ impl TimeProblem {
             .enumerate()
             .map(|(e, ((m, d), w))| if e / l < self.skip { 0.0 } else { (m - d) * w })
             .collect();
-        if let Some(e) = r.iter().position(|v| !(v.abs() <= LARGEST_RESIDUAL)) {
+        if let Some(e) = r
+            .iter()
+            .position(|v| v.is_nan() || v.abs() > LARGEST_RESIDUAL)
+        {
             return Err(invalid(
                 "model",
                 format!(

@@ -69,31 +69,37 @@ fn axpy<const FUSED: bool>(acc: &mut [f64; GROUP], w: f64, v: &[f64]) {
 
 /// The state columns one thread advances.
 struct Slice {
-    cols: Vec<StateColumn>,
+    /// `(column, i, a, zb)` of every theta column (see [`StateColumn`]).
+    theta: Vec<(usize, usize, usize, usize)>,
     width: usize,
     /// Width rounded up to whole groups; the padding columns stay zero.
     padded: usize,
     /// `S(t)`, `n x padded` row-major.
     s: Vec<f64>,
     next: Vec<f64>,
+    /// `C(t) S(t)`, `l x padded` row-major.
+    ybuf: Vec<f64>,
 }
 
 impl Slice {
-    fn new(cols: &[StateColumn], n: usize) -> Slice {
+    fn new(cols: &[StateColumn], n: usize, l: usize) -> Slice {
         let width = cols.len();
         let padded = width.div_ceil(GROUP) * GROUP;
         let mut s = vec![0.0; n * padded];
+        let mut theta = Vec::new();
         for (k, col) in cols.iter().enumerate() {
-            if let StateColumn::Initial { a } = *col {
-                s[a * padded + k] = 1.0;
+            match *col {
+                StateColumn::Initial { a } => s[a * padded + k] = 1.0,
+                StateColumn::Theta { i, a, zb } => theta.push((k, i, a, zb)),
             }
         }
         Slice {
-            cols: cols.to_vec(),
+            theta,
             width,
             padded,
             s,
             next: vec![0.0; n * padded],
+            ybuf: vec![0.0; l * padded],
         }
     }
 
@@ -144,8 +150,27 @@ impl pulp::WithSimd for Advance<'_, '_> {
 }
 
 impl Advance<'_, '_> {
+    /// The kernel with the number of states fixed at compile time when it
+    /// is at most 8 (the sources of a group of columns then stay in
+    /// registers), known at run time otherwise.
     #[inline(always)]
     fn kernel<const FUSED: bool>(self) {
+        match self.pass.coef.n {
+            1 => self.run::<1, FUSED>(),
+            2 => self.run::<2, FUSED>(),
+            3 => self.run::<3, FUSED>(),
+            4 => self.run::<4, FUSED>(),
+            5 => self.run::<5, FUSED>(),
+            6 => self.run::<6, FUSED>(),
+            7 => self.run::<7, FUSED>(),
+            8 => self.run::<8, FUSED>(),
+            _ => self.run::<0, FUSED>(),
+        }
+    }
+
+    /// `N` states, or any number when `N = 0`.
+    #[inline(always)]
+    fn run<const N: usize, const FUSED: bool>(self) {
         let Advance {
             slice,
             pass,
@@ -153,14 +178,56 @@ impl Advance<'_, '_> {
             span: (t0, t1),
             mut jac,
         } = self;
-        let (n, r, l) = (pass.coef.n, pass.coef.r, pass.coef.l);
+        let (n, r, l) = (
+            if N == 0 { pass.coef.n } else { N },
+            pass.coef.r,
+            pass.coef.l,
+        );
         let (width, padded) = (slice.width, slice.padded);
         let w = pass.record.weight();
         let u = pass.record.u();
         for t in t0..t1 {
             let k = t - t0;
-            // Outputs: row (k, j) of the block is w_j(t) C_j(t) S(t).
-            let c = frames.c(k);
+            let ad = &frames.ad(k)[..n * n];
+            let c = &frames.c(k)[..l * n];
+            // S(t+1) = Ad(t) S(t) and the outputs C(t) S(t), a group of
+            // columns at a time.
+            for g in (0..padded).step_by(GROUP) {
+                if N > 0 {
+                    let mut src = [[0.0; GROUP]; N];
+                    for (cc, v) in src.iter_mut().enumerate() {
+                        v.copy_from_slice(&slice.s[cc * padded + g..][..GROUP]);
+                    }
+                    for (a, row) in ad.chunks_exact(N).enumerate() {
+                        let mut acc = [0.0; GROUP];
+                        for (coef, v) in row.iter().zip(&src) {
+                            axpy::<FUSED>(&mut acc, *coef, v);
+                        }
+                        slice.next[a * padded + g..][..GROUP].copy_from_slice(&acc);
+                    }
+                    for (j, row) in c.chunks_exact(N).enumerate() {
+                        let mut acc = [0.0; GROUP];
+                        for (coef, v) in row.iter().zip(&src) {
+                            axpy::<FUSED>(&mut acc, *coef, v);
+                        }
+                        slice.ybuf[j * padded + g..][..GROUP].copy_from_slice(&acc);
+                    }
+                } else {
+                    for (a, row) in ad.chunks_exact(n).chain(c.chunks_exact(n)).enumerate() {
+                        let mut acc = [0.0; GROUP];
+                        for (cc, &coef) in row.iter().enumerate() {
+                            axpy::<FUSED>(&mut acc, coef, &slice.s[cc * padded + g..][..GROUP]);
+                        }
+                        let dst = if a < n {
+                            &mut slice.next[a * padded + g..]
+                        } else {
+                            &mut slice.ybuf[(a - n) * padded + g..]
+                        };
+                        dst[..GROUP].copy_from_slice(&acc);
+                    }
+                }
+            }
+            // Row (k, j) of the block: w_j(t) C_j(t) S(t).
             for j in 0..l {
                 let row = jac
                     .as_mut()
@@ -170,55 +237,32 @@ impl Advance<'_, '_> {
                     .as_slice_mut();
                 if t < pass.skip {
                     row.fill(0.0);
-                    continue;
-                }
-                let wj = w[t * l + j];
-                let cj = &c[j * n..(j + 1) * n];
-                for g in (0..padded).step_by(GROUP) {
-                    let mut acc = [0.0; GROUP];
-                    for (cc, &coef) in cj.iter().enumerate() {
-                        axpy::<FUSED>(&mut acc, coef, &slice.s[cc * padded + g..][..GROUP]);
+                } else {
+                    let wj = w[t * l + j];
+                    for (o, y) in row.iter_mut().zip(&slice.ybuf[j * padded..][..width]) {
+                        *o = wj * y;
                     }
-                    let m = GROUP.min(width - g);
-                    for (o, a) in row[g..g + m].iter_mut().zip(&acc) {
-                        *o = wj * a;
-                    }
-                }
-            }
-            // S(t+1) = Ad(t) S(t), a group of columns at a time.
-            let ad = frames.ad(k);
-            for g in (0..padded).step_by(GROUP) {
-                for a in 0..n {
-                    let mut acc = [0.0; GROUP];
-                    for (cc, &coef) in ad[a * n..(a + 1) * n].iter().enumerate() {
-                        axpy::<FUSED>(&mut acc, coef, &slice.s[cc * padded + g..][..GROUP]);
-                    }
-                    slice.next[a * padded + g..][..GROUP].copy_from_slice(&acc);
                 }
             }
             // + F(t).
             let psi1 = frames.psi1(k);
             match frames.forcing(k) {
                 None => {
-                    for (col, sc) in slice.cols.iter().enumerate() {
-                        if let StateColumn::Theta { i, a, zb } = *sc {
-                            let z = if zb < n {
-                                pass.states[t * n + zb]
-                            } else {
-                                u[t * r + zb - n]
-                            };
-                            slice.next[a * padded + col] += psi1[i] * z;
-                        }
+                    for &(col, i, a, zb) in &slice.theta {
+                        let z = if zb < n {
+                            pass.states[t * n + zb]
+                        } else {
+                            u[t * r + zb - n]
+                        };
+                        slice.next[a * padded + col] += psi1[i] * z;
                     }
                 }
                 Some(f) => {
                     let s = n + r;
-                    for (col, sc) in slice.cols.iter().enumerate() {
-                        if let StateColumn::Theta { i, a, zb } = *sc {
-                            let v = &f[(a * s + zb) * n..(a * s + zb + 1) * n];
-                            for cc in 0..n {
-                                slice.next[cc * padded + col] += psi1[i] * v[cc];
-                            }
+                    for &(col, i, a, zb) in &slice.theta {
+                        let v = &f[(a * s + zb) * n..(a * s + zb + 1) * n];
+                        for (cc, &x) in v.iter().enumerate() {
+                            slice.next[cc * padded + col] += psi1[i] * x;
                         }
                     }
                 }
@@ -329,7 +373,7 @@ impl Pass<'_> {
         let mut slices: Vec<Slice> = (0..pieces)
             .map(|p| {
                 let (a, b) = (p * n_state / pieces, (p + 1) * n_state / pieces);
-                Slice::new(&self.columns.state[a..b], n)
+                Slice::new(&self.columns.state[a..b], n, l)
             })
             .filter(|s| s.width > 0)
             .collect();
