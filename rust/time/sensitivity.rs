@@ -4,12 +4,16 @@
 //! For the state columns (see [`super::columns`]) the sensitivities
 //! `S(t)` (`n` rows, one column per parameter) follow
 //! `S(t+1) = Ad(t) S(t) + F(t)`, and their outputs are `C(t) S(t)`; the
-//! output columns are `psi_i(t) z_b(t)` in one output. Each block of
-//! samples fills the weighted Jacobian rows of its samples (`l` per
-//! sample, zero before `skip`) and adds `J^T J` and `J^T r` to the sums.
-//! The columns are cut into one slice per thread (the recursion of one
-//! column does not depend on the others); the Gram product is faer's,
-//! parallel over the output blocks.
+//! output columns are `psi_i(t) z_b(t)` in one output and zero in the
+//! others. Each block of samples fills the weighted Jacobian rows of its
+//! samples (`l` per sample, zero before `skip`) and adds `J^T J` and
+//! `J^T r` to the sums, using the zeros of the output columns (their
+//! products are formed output by output).
+//!
+//! Both cores work on both stages: the state columns are cut into one
+//! slice per thread for the recursion (the recursion of one column does
+//! not depend on the others), and the samples of a block into one share
+//! per thread for the products (faer's, each thread with its own sums).
 
 // Small kernels index several arrays at once; an index reads best.
 #![allow(clippy::needless_range_loop)]
@@ -331,14 +335,10 @@ struct ByOutput {
     cols: Vec<Vec<OutputColumn>>,
     /// Their values in one block of samples, row-major.
     values: Vec<Vec<f64>>,
-    /// `K_j^T J_s` (`len_j x n_state`), `K_j^T K_j` and `K_j^T r_j`.
-    cross: Vec<Mat<f64>>,
-    own: Vec<Mat<f64>>,
-    jtr: Vec<Mat<f64>>,
 }
 
 impl ByOutput {
-    fn new(output: &[OutputColumn], l: usize, n_state: usize, block: usize) -> ByOutput {
+    fn new(output: &[OutputColumn], l: usize, block: usize) -> ByOutput {
         let index: Vec<Vec<usize>> = (0..l)
             .map(|j| (0..output.len()).filter(|&k| output[k].j == j).collect())
             .collect();
@@ -348,11 +348,81 @@ impl ByOutput {
             .collect();
         ByOutput {
             values: cols.iter().map(|c| vec![0.0; block * c.len()]).collect(),
-            cross: cols.iter().map(|c| Mat::zeros(c.len(), n_state)).collect(),
-            own: cols.iter().map(|c| Mat::zeros(c.len(), c.len())).collect(),
-            jtr: cols.iter().map(|c| Mat::zeros(c.len(), 1)).collect(),
             index,
             cols,
+        }
+    }
+}
+
+/// The sums one thread accumulates over its share of the rows.
+struct Sums {
+    /// `J_s^T J_s` (lower triangle) and `J_s^T r` of the state columns.
+    gss: Mat<f64>,
+    jtr_s: Mat<f64>,
+    /// Per output `j`: `K_j^T J_s` (`len_j x n_state`), `K_j^T K_j` (lower
+    /// triangle) and `K_j^T r_j`.
+    cross: Vec<Mat<f64>>,
+    own: Vec<Mat<f64>>,
+    jtr_o: Vec<Mat<f64>>,
+}
+
+impl Sums {
+    fn new(n_state: usize, outs: &ByOutput) -> Sums {
+        let cols = &outs.cols;
+        Sums {
+            gss: Mat::zeros(n_state, n_state),
+            jtr_s: Mat::zeros(n_state, 1),
+            cross: cols.iter().map(|c| Mat::zeros(c.len(), n_state)).collect(),
+            own: cols.iter().map(|c| Mat::zeros(c.len(), c.len())).collect(),
+            jtr_o: cols.iter().map(|c| Mat::zeros(c.len(), 1)).collect(),
+        }
+    }
+
+    /// Add samples `a..b` of a block: state rows `js` (row-major, `l` rows
+    /// per sample), residual `rr` and the output columns' values.
+    fn add(&mut self, js: &[f64], rr: &[f64], outs: &ByOutput, l: usize, (a, b): (usize, usize)) {
+        let n_state = self.gss.nrows();
+        let (len, rows) = (b - a, (b - a) * l);
+        let js = &js[a * l * n_state..b * l * n_state];
+        let rr = &rr[a * l..b * l];
+        if n_state > 0 {
+            let jm = MatRef::from_row_major_slice(js, rows, n_state);
+            let rm = MatRef::from_column_major_slice(rr, rows, 1);
+            gram_add(self.gss.as_mut(), jm, jm, true, Par::Seq);
+            gram_add(self.jtr_s.as_mut(), jm, rm, false, Par::Seq);
+        }
+        // Output columns: nonzero only in the rows of their output.
+        for (j, cols) in outs.cols.iter().enumerate() {
+            let width = cols.len();
+            if width == 0 {
+                continue;
+            }
+            let kj =
+                MatRef::from_row_major_slice(&outs.values[j][a * width..b * width], len, width);
+            let rj = MatRef::from_row_major_slice_with_stride(&rr[j..], len, 1, l);
+            if n_state > 0 {
+                let jsj = MatRef::from_row_major_slice_with_stride(
+                    &js[j * n_state..],
+                    len,
+                    n_state,
+                    l * n_state,
+                );
+                gram_add(self.cross[j].as_mut(), kj, jsj, false, Par::Seq);
+            }
+            gram_add(self.own[j].as_mut(), kj, kj, true, Par::Seq);
+            gram_add(self.jtr_o[j].as_mut(), kj, rj, false, Par::Seq);
+        }
+    }
+
+    /// `self += other`.
+    fn merge(&mut self, other: &Sums) {
+        let add = |a: &mut Mat<f64>, b: &Mat<f64>| *a += b;
+        add(&mut self.gss, &other.gss);
+        add(&mut self.jtr_s, &other.jtr_s);
+        for j in 0..self.cross.len() {
+            add(&mut self.cross[j], &other.cross[j]);
+            add(&mut self.own[j], &other.own[j]);
+            add(&mut self.jtr_o[j], &other.jtr_o[j]);
         }
     }
 }
@@ -377,11 +447,10 @@ impl Pass<'_> {
             })
             .filter(|s| s.width > 0)
             .collect();
-        let mut outs = ByOutput::new(&self.columns.output, l, n_state, block);
+        let mut outs = ByOutput::new(&self.columns.output, l, block);
         let forcing = self.hold.is_some() && self.columns.theta_state > 0;
         let mut frames = Frames::new(self.coef, block, forcing);
-        let mut gss = Mat::<f64>::zeros(n_state, n_state);
-        let mut jtr_s = Mat::<f64>::zeros(n_state, 1);
+        let mut sums: Vec<Sums> = (0..threads).map(|_| Sums::new(n_state, &outs)).collect();
         for t0 in (0..total).step_by(block) {
             let t1 = (t0 + block).min(total);
             let (len, rows) = (t1 - t0, (t1 - t0) * l);
@@ -425,33 +494,21 @@ impl Pass<'_> {
                     self.residual[t0 * l + k]
                 };
             }
-            let js = MatRef::from_row_major_slice(&jac[..rows * n_state], rows, n_state);
-            let rm = MatRef::from_column_major_slice(&rr[..rows], rows, 1);
-            if n_state > 0 {
-                gram_add(gss.as_mut(), js, js, true, Par::rayon(0));
-                gram_add(jtr_s.as_mut(), js, rm, false, Par::Seq);
-            }
-            // Output columns: nonzero only in the rows of their output.
-            for j in 0..l {
-                let width = outs.cols[j].len();
-                if width == 0 {
-                    continue;
+            // Each thread sums the products of its share of the samples.
+            let parts = sums.len();
+            let (jac_ref, rr_ref, outs_ref) = (&jac, &rr, &outs);
+            rayon::scope(|scope| {
+                for (p, acc) in sums.iter_mut().enumerate() {
+                    let span = (p * len / parts, (p + 1) * len / parts);
+                    scope.spawn(move |_| acc.add(jac_ref, rr_ref, outs_ref, l, span));
                 }
-                let kj = MatRef::from_row_major_slice(&outs.values[j][..len * width], len, width);
-                let rj = MatRef::from_row_major_slice_with_stride(&rr[j..rows], len, 1, l);
-                if n_state > 0 {
-                    let jsj = MatRef::from_row_major_slice_with_stride(
-                        &jac[j * n_state..rows * n_state],
-                        len,
-                        n_state,
-                        l * n_state,
-                    );
-                    gram_add(outs.cross[j].as_mut(), kj, jsj, false, Par::rayon(0));
-                }
-                gram_add(outs.own[j].as_mut(), kj, kj, true, Par::Seq);
-                gram_add(outs.jtr[j].as_mut(), kj, rj, false, Par::Seq);
-            }
+            });
             times.gram += clock.elapsed().as_secs_f64();
+        }
+        let (first, others) = sums.split_at_mut(1);
+        let sum = &mut first[0];
+        for other in others.iter() {
+            sum.merge(other);
         }
         // Assemble in engine order: state columns, then output columns.
         let mut full = vec![0.0; kcols * kcols];
@@ -461,22 +518,22 @@ impl Pass<'_> {
         };
         for b in 0..n_state {
             for a in b..n_state {
-                put(a, b, gss[(a, b)]);
+                put(a, b, sum.gss[(a, b)]);
             }
         }
-        let mut jtr: Vec<f64> = (0..n_state).map(|i| jtr_s[(i, 0)]).collect();
+        let mut jtr: Vec<f64> = (0..n_state).map(|i| sum.jtr_s[(i, 0)]).collect();
         jtr.resize(kcols, 0.0);
         for j in 0..l {
             let ix = &outs.index[j];
             for (p, &q) in ix.iter().enumerate() {
                 let row = n_state + q;
                 for b in 0..n_state {
-                    put(row, b, outs.cross[j][(p, b)]);
+                    put(row, b, sum.cross[j][(p, b)]);
                 }
                 for (p2, &q2) in ix.iter().enumerate().take(p + 1) {
-                    put(row, n_state + q2, outs.own[j][(p, p2)]);
+                    put(row, n_state + q2, sum.own[j][(p, p2)]);
                 }
-                jtr[row] = outs.jtr[j][(p, 0)];
+                jtr[row] = sum.jtr_o[j][(p, 0)];
             }
         }
         Ok(Normal {
