@@ -114,15 +114,19 @@ fn jacobian(
     cols
 }
 
-fn check(shape: Shape, hold: Option<f64>, initial: InitialState, skip: usize, fixed_every: usize) {
+fn check_with(
+    shape: Shape,
+    hold: Option<f64>,
+    initial: InitialState,
+    skip: usize,
+    is_free: &dyn Fn(usize) -> bool,
+) {
     let theta = model(&shape, hold.is_none(), 5 + shape.n as u64);
     let recs = records(&shape, &[70, 45], 17);
     let make =
         |init: InitialState| TimeProblem::new(shape, recs.clone(), init, hold, skip).unwrap();
     let problem = make(initial.clone());
-    let mask: Vec<bool> = (0..shape.len())
-        .map(|i| fixed_every == 0 || i % fixed_every != 1)
-        .collect();
+    let mask: Vec<bool> = (0..shape.len()).map(is_free).collect();
     let free = FreeSet::from_mask(&mask);
     let gn = problem.gauss_newton(&theta, &free).unwrap();
     let v = problem.cost(&theta).unwrap();
@@ -192,6 +196,13 @@ fn check(shape: Shape, hold: Option<f64>, initial: InitialState, skip: usize, fi
             e / nf
         );
     }
+}
+
+/// `check_with` with every `fixed_every`-th parameter (from the second) fixed.
+fn check(shape: Shape, hold: Option<f64>, initial: InitialState, skip: usize, fixed_every: usize) {
+    check_with(shape, hold, initial, skip, &|i| {
+        fixed_every == 0 || i % fixed_every != 1
+    });
 }
 
 #[test]
@@ -311,4 +322,17 @@ fn bad_records_and_settings_are_named() {
         "x0"
     );
     assert_eq!(make(InitialState::Zero, None, 3).unwrap().n_residuals(), 1);
+}
+
+#[test]
+fn only_output_or_only_state_parameters_free() {
+    let shape = Shape::new(3, 2, 2, 2).unwrap();
+    let c0 = shape.block(Matrix::C, 0).start;
+    let output_only = |i: usize| i >= c0;
+    let state_only = |i: usize| i < c0;
+    for hold in [None, Some(0.2)] {
+        check_with(shape, hold, InitialState::Zero, 2, &output_only);
+        check_with(shape, hold, InitialState::Estimate, 2, &output_only);
+        check_with(shape, hold, InitialState::Estimate, 0, &state_only);
+    }
 }
