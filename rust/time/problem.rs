@@ -12,9 +12,11 @@ use crate::objective::{GaussNewton, Objective};
 use crate::simulate::{simulate, simulate_zoh, Trajectory};
 use std::time::Instant;
 
-/// Largest weighted residual accepted: beyond it the cost of a record
-/// would overflow, and the model counts as diverging.
-const LARGEST_RESIDUAL: f64 = 1e150;
+/// Largest weighted residual accepted: a model whose output error grows
+/// past it diverges along the record. Far below the overflow of its
+/// square, so that the sensitivities (larger by up to the record length)
+/// and their Gram matrix stay finite too.
+const LARGEST_RESIDUAL: f64 = 1e100;
 
 /// Time records of one system, the model shape, the time domain and how
 /// the initial states and the first samples are treated.
