@@ -176,8 +176,10 @@ impl Frames {
                         None => Coefficients::combine(&coef.a, nn, psi1, adk),
                         Some(dt) => {
                             let f = with_forcing.then(|| &mut forcing[k * fs..(k + 1) * fs]);
-                            work.get_or_insert_with(|| Sample::new(coef))
-                                .hold(coef, record, states, dt, t, psi1, adk, f)
+                            let sample = work.get_or_insert_with(|| Sample::new(coef));
+                            // With AVX2 and FMA where the CPU has them.
+                            pulp::Arch::new()
+                                .dispatch(|| sample.hold(coef, record, states, dt, t, psi1, adk, f))
                                 .map_err(|e| {
                                     Error::Numerical(format!("{e} (zero-order hold at sample {t})"))
                                 })?;
@@ -216,6 +218,7 @@ impl Sample {
 
     /// `Ad(t)` and, when asked, `dt L(M, e_a e_b^T) z(t)` into `forcing`.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn hold(
         &mut self,
         coef: &Coefficients,

@@ -35,6 +35,7 @@ const PADE6: [f64; 7] = [
 ];
 
 /// `out = a b` for `s x s` row-major matrices.
+#[inline(always)]
 fn mul(s: usize, a: &[f64], b: &[f64], out: &mut [f64]) {
     out.fill(0.0);
     for i in 0..s {
@@ -49,6 +50,7 @@ fn mul(s: usize, a: &[f64], b: &[f64], out: &mut [f64]) {
 }
 
 /// `out += d p^T` for `s x s` row-major matrices.
+#[inline(always)]
 fn mul_add_bt(s: usize, d: &[f64], p: &[f64], out: &mut [f64]) {
     for i in 0..s {
         let di = &d[i * s..(i + 1) * s];
@@ -60,6 +62,7 @@ fn mul_add_bt(s: usize, d: &[f64], p: &[f64], out: &mut [f64]) {
 }
 
 /// LU factorisation with partial pivoting in place; false when singular.
+#[inline(always)]
 fn lu_factor(s: usize, a: &mut [f64], piv: &mut [usize]) -> bool {
     for k in 0..s {
         let p = (k..s)
@@ -88,6 +91,7 @@ fn lu_factor(s: usize, a: &mut [f64], piv: &mut [usize]) -> bool {
 
 /// Solve `A X = b` in place for an `s x s` right-hand side, `A` as factored
 /// by [`lu_factor`].
+#[inline(always)]
 fn lu_solve(s: usize, lu: &[f64], piv: &[usize], b: &mut [f64]) {
     for k in 0..s {
         if piv[k] != k {
@@ -178,6 +182,7 @@ impl Hold {
     /// `forcing[(a s + b) n + c] = (L(m, e_a e_b^T) z)_c` for `a, c < n`
     /// and `b < s`. Fails ([`Error::Numerical`]) only when `m` is not
     /// finite or the Padé denominator is singular.
+    #[inline(always)]
     pub fn compute(
         &mut self,
         m: &[f64],
@@ -248,6 +253,7 @@ impl Hold {
 
     /// The upper-right blocks for `X = e_a z^T`, `a < n` (see the module
     /// documentation), into `forcing`.
+    #[inline(always)]
     fn derivative(&mut self, z: &[f64], scale: f64, squarings: usize, forcing: &mut [f64]) {
         let (n, s) = (self.n, self.s);
         let c = PADE6;
