@@ -353,6 +353,9 @@ def identify(
     ------
     KeyboardInterrupt
         When Ctrl-C stops one of the fits.
+    ValueError
+        On bad arguments, and when the start chosen on the FRFs diverges
+        along a time record (the message names the record and the sample).
     """
     t0 = time.perf_counter()
     if not isinstance(data, FrfData):
