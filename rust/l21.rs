@@ -197,6 +197,19 @@ fn weigh(specs: &[GroupSpec], theta: &[f64], s: &L21Settings) -> Vec<ConeGroup> 
         .collect()
 }
 
+/// Whether the groups in use are the same as at the last reweighting and
+/// none of them is on its way out. A group between the threshold and a tenth
+/// of `eps` that shrank by half or more over the last reweighting is still
+/// dying (its weight is near `1/eps` and no longer moves); one that holds
+/// its size there is in use.
+fn settled(magnitudes: &[f64], previous: &[f64], s: &L21Settings) -> bool {
+    magnitudes.iter().zip(previous).all(|(&m, &p)| {
+        let in_use = m > s.threshold;
+        let dying = in_use && m < 0.1 * s.eps && m < 0.5 * p;
+        in_use == (p > s.threshold) && !dying
+    })
+}
+
 /// Algorithm 1: reweighted l2,1-regularised fit from `theta0`.
 ///
 /// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
@@ -234,7 +247,7 @@ pub fn fit_l21(
     let mut diag = marquardt_diagonal(&gn);
     let mut history = Vec::new();
     let mut prev_phi: Option<Vec<f64>> = None;
-    let mut prev_state: Option<(Vec<bool>, f64)> = None;
+    let mut prev_state: Option<(Vec<f64>, f64)> = None;
     let mut stop = Stop::MaxIterations;
     let mut groups = weigh(&specs, &theta, settings);
     let mut outer = 0;
@@ -255,28 +268,24 @@ pub fn fit_l21(
         }
         // Once the groups in use and the fit have settled, further outer
         // iterations only slide along similarity transforms that trade the
-        // size of the penalised groups for that of the constant parts. A
-        // group between the threshold and a tenth of eps is still on its way
-        // out (its weight is near 1/eps and no longer moves): not settled.
+        // size of the penalised groups for that of the constant parts.
         let magnitudes: Vec<f64> = groups
             .iter()
             .map(|g| g.varphi * g.norm_at(&theta))
             .collect();
-        let support: Vec<bool> = magnitudes.iter().map(|&m| m > settings.threshold).collect();
-        let dying = magnitudes
-            .iter()
-            .any(|&m| m > settings.threshold && m < 0.1 * settings.eps);
-        if let Some((prev_support, prev_v)) = &prev_state {
-            if !dying
-                && *prev_support == support
+        if let Some((prev_mag, prev_v)) = &prev_state {
+            if settled(&magnitudes, prev_mag, settings)
                 && (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v
             {
                 stop = Stop::Settled;
                 break;
             }
         }
-        prev_state = Some((support, gn.vnls));
+        prev_state = Some((magnitudes, gn.vnls));
         outer += 1;
+        // Every reweighting starts from the initial damping (carrying it
+        // over was measured: fewer rejected steps, but other models on the
+        // gantry path, one more group at gamma = 0.03).
         let mut damping = Damping::new(settings.lambda0);
         if free.is_empty() {
             stop = Stop::NothingFree;
@@ -304,20 +313,22 @@ pub fn fit_l21(
                 let predicted = objective
                     - (gn.vnls - predicted_decrease(&gn, d)) / m_res
                     - cone.penalty(Some(d));
-                if let Ok(v) = problem.cost(&trial) {
-                    let f_trial = v / m_res + cone.penalty(Some(d));
+                // Most steps are taken: evaluate the Gauss-Newton pieces at the
+                // trial point at once (as Levenberg-Marquardt does).
+                if let Ok(cand) = problem.gauss_newton(&trial, free) {
+                    let f_trial = cand.vnls / m_res + cone.penalty(Some(d));
                     rho = (objective - f_trial) / predicted;
                     if f_trial.is_finite() && f_trial < objective && predicted > 0.0 {
                         accepted = true;
                         new_objective = f_trial;
-                        new_theta = Some(trial);
+                        new_theta = Some((trial, cand));
                     }
                 }
             }
             damping.update(if accepted { rho } else { -1.0 });
             let theta_norm = norm(&free.gather(&theta));
-            if let Some(trial) = new_theta {
-                gn = problem.gauss_newton(&trial, free)?;
+            if let Some((trial, cand)) = new_theta {
+                gn = cand;
                 diag = marquardt_diagonal(&gn);
                 theta = trial;
             }
@@ -342,6 +353,7 @@ pub fn fit_l21(
             if small || (accepted && objective - new_objective <= settings.ftol * objective.abs()) {
                 break;
             }
+
             if !accepted && damping.exhausted() {
                 // No decrease at any damping: this point is as good as it gets
                 // for these weights.
