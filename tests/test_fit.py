@@ -234,3 +234,21 @@ def test_bad_nls_arguments(case):
         lpvid.fit_nls(start, data, lambda0=0.0)
     with pytest.raises(ValueError, match="gammas"):
         lpvid.l21_path(start, data, [])
+
+
+@pytest.mark.parametrize("gamma", [1e6, 1e300])
+def test_a_gamma_that_no_group_is_worth_returns_the_constant_model(case, gamma):
+    """Every penalised group ends exactly at zero; V_NLS is that of the constant model."""
+    start, data, nls = case
+    reg = lpvid.fit_l21(nls.model, data, gamma, warn=False)
+    assert reg.n_groups == 0
+    for x in reg.model.matrices().values():
+        assert np.all(x[1:] == 0.0)
+    groups = {x: list(range(1, start.n_basis + 1)) for x in "ABCD"}
+    mask = lpvid.fixed_mask(nls.model, groups)
+    constant = lpvid.fit_nls(
+        nls.model.with_theta(np.where(mask, 0.0, nls.model.theta)), data, mask, warn=False
+    )
+    # The l2,1 fit takes cone steps rather than LM steps on the constant part:
+    # close to the constant model's optimum, and never below it.
+    assert constant.vnls * (1 - 1e-9) <= reg.vnls <= 1.05 * constant.vnls
