@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.cost import vnls
 from lpvid.data import FrfData
@@ -250,6 +251,7 @@ def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
     )
 
 
+@single_blas
 def identify(
     data: FrfData,
     order: int,
@@ -368,7 +370,9 @@ def identify(
     warn_if_unconverged(nls, "the unregularised fit (fit_nls)", stacklevel=2)
     for c in sorted(candidates, key=lambda c: (c.validation_vnls or 0.0, c.vnls)):
         val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
-        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{'' if c.stable else ', unstable'}")
+        dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
+        state = ("" if c.stable else ", unstable") + dropped
+        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
     timings["nls_s"] = nls.timings["total_s"]
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")

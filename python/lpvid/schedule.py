@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array
+from lpvid._graphs import spanning_tree_walk
 
 __all__ = [
     "as_rows",
@@ -108,8 +109,6 @@ def propagation_order(
         ``parent[k]`` is the already visited neighbour of point k (-1 for the root).
 
     """
-    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
-
     N = p.shape[0]
     s = unit_scaled(p)
     dist = np.linalg.norm(s[:, None, :] - s[None, :, :], axis=2)
@@ -119,11 +118,7 @@ def propagation_order(
         raise ValueError(f"root: expected a point index in 0..{N - 1}, got {root}")
     if N == 1:
         return np.array([0]), np.array([-1])
-    # Strictly positive weights: the sparse tree drops zero entries.
-    tree = minimum_spanning_tree(dist + 1e-300)
-    order, parent = breadth_first_order(tree, root, directed=False)
-    parent = np.where(parent < 0, -1, parent)
-    return order, parent
+    return spanning_tree_walk(dist, root)
 
 
 def between_points(p: ArrayLike, steps: int = 8) -> NDArray[np.float64]:

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._graphs import assignment
 from lpvid.cost import gauss_newton
 from lpvid.data import FrfData
 from lpvid.layout import fixed_mask
@@ -66,10 +67,8 @@ def match_poles(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> tuple[f
     Returns the largest distance among the paired poles and the indices of
     that worst pair in ``a`` and ``b``.
     """
-    from scipy.optimize import linear_sum_assignment
-
     cost = np.abs(a[:, None] - b[None, :])
-    rows, cols = linear_sum_assignment(cost)
+    rows, cols = assignment(cost)
     k = int(np.argmax(cost[rows, cols]))
     return float(cost[rows[k], cols[k]]), int(rows[k]), int(cols[k])
 
