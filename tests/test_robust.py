@@ -325,6 +325,25 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
     assert chosen.stable and not any(c.stable for c in cands if c.name.startswith("smile:"))
 
 
+def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
+    """Successive halving refines fewer starts and picks the start that refining all would."""
+    data, val = hard
+    local = lpvid.identify_lti(data, 6)
+    kw = dict(validation=val, local=local)
+    raced = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    full = initial.initial_candidates(data, 6, DAMPED_BASIS, halving=False, **kw)
+    assert [c.name for c in raced] == [c.name for c in full]
+    assert all(c.refined for c in full)
+    dropped = [c for c in raced if not c.refined]
+    assert dropped and all("dropped from the race" in c.note for c in dropped)
+    steps = sum(len(c.fit.history) for c in raced)
+    assert steps < 0.7 * sum(len(c.fit.history) for c in full)
+    pick, _ = initial.choose(raced)
+    assert pick.refined and pick.name == initial.choose(full)[0].name
+    same = next(c for c in full if c.name == pick.name)
+    assert pick.validation_vnls == pytest.approx(same.validation_vnls, rel=0.02)
+
+
 # ------------------------------------------------------------------ the easy case
 def test_gantry_does_at_least_as_well_as_the_plain_route():
     ds = lpvid.datasets.gantry()
