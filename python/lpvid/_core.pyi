@@ -29,7 +29,7 @@ def simulate(
     x0: NDArray[np.float64],
     dt: float | None = None,
     states: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]: ...
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int | None]: ...
 
 class Problem:
     def __init__(

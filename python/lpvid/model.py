@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -18,6 +19,9 @@ if TYPE_CHECKING:
     from lpvid.groups import GroupNorms
 
 __all__ = ["LpvModel"]
+
+# What `LpvModel.simulate` does when the simulation diverges.
+_ON_DIVERGENCE = ("warn", "raise")
 
 
 def _coefficients(value: Any, name: str, n_coef: int | None) -> NDArray[np.float64]:
@@ -232,7 +236,9 @@ class LpvModel:
         Raises
         ------
         SingularModelError
-            When a frozen model has a pole exactly at an evaluation point.
+            When a frozen model has a pole exactly at an evaluation point, or
+            the response overflows (is not finite) at one; the message names
+            the point and the frequency line.
 
         """
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
@@ -251,6 +257,7 @@ class LpvModel:
         *,
         dt: float | None = None,
         return_states: bool = False,
+        on_divergence: str = "warn",
     ) -> Any:
         """Simulate the model in time along a scheduling trajectory ``p(t)``.
 
@@ -284,6 +291,14 @@ class LpvModel:
             model, and for a discrete-time one only allowed equal to ``Ts``.
         return_states : bool, optional
             Also return the states.
+        on_divergence : {"warn", "raise"}, optional
+            What happens when the simulation leaves the range of floating
+            point (a model unstable along ``p(t)``): ``"warn"`` (default)
+            returns the outputs as computed, Inf or NaN from that sample on,
+            with a ``RuntimeWarning`` that names the first sample whose
+            output (or returned state) is not finite and the scheduling
+            value there; ``"raise"`` raises a ``ValueError`` with the same
+            message instead.
 
         Returns
         -------
@@ -299,8 +314,13 @@ class LpvModel:
         ValueError, TypeError
             When ``u`` has the wrong number of inputs, ``p`` the wrong
             length, ``x0`` the wrong size, ``dt`` is missing or inconsistent,
-            a value is NaN or Inf, or the basis is not finite along ``p``.
-            An unstable model gives non-finite outputs, not an error.
+            a value is NaN or Inf, or the basis is not finite along ``p``;
+            with ``on_divergence="raise"``, when the simulation diverges.
+
+        Warns
+        -----
+        RuntimeWarning
+            With ``on_divergence="warn"``, when the simulation diverges.
 
         Examples
         --------
@@ -311,6 +331,10 @@ class LpvModel:
 
         """
         n, r, l, nb = self.shape
+        if on_divergence not in _ON_DIVERGENCE:
+            raise ValueError(
+                f"on_divergence: expected one of {_ON_DIVERGENCE}, got {on_divergence!r}"
+            )
         u_arr = real_array(u, "u", ndim=(1, 2))
         if u_arr.ndim == 1:
             if r != 1:
@@ -369,7 +393,7 @@ class LpvModel:
             hold = positive_float(dt, "dt")
         # u_arr and psi are this call's own arrays: the core may read them
         # without the GIL.
-        y, x = _core.simulate(
+        y, x, diverged = _core.simulate(
             n,
             r,
             l,
@@ -381,6 +405,15 @@ class LpvModel:
             hold,
             bool(return_states),
         )
+        if diverged is not None:
+            message = (
+                f"simulate: the simulation left the range of floating point at sample "
+                f"{diverged} (p = {p_arr[diverged].tolist()}): the model is unstable along "
+                f"the scheduling trajectory; values from there on are Inf or NaN"
+            )
+            if on_divergence == "raise":
+                raise ValueError(message)
+            warnings.warn(message, RuntimeWarning, stacklevel=2)
         y = y.reshape(t_len, l)
         if return_states:
             assert x is not None
