@@ -7,7 +7,9 @@
 //! is kept when it lowers `V_NLS` by more than about `gamma M`.
 
 use crate::error::{invalid, Result};
-use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
+use crate::fit::{
+    check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
+};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::problem::Problem;
@@ -202,7 +204,8 @@ fn weigh(specs: &[GroupSpec], theta: &[f64], s: &L21Settings) -> Vec<ConeGroup> 
 /// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
 /// `gamma = 0` the problem is plain nonlinear least squares and the fit is
 /// [`levenberg_marquardt`] with its default settings (the cone steps would
-/// reproduce its steps at a higher price).
+/// reproduce its steps at a higher price). Fails when V_NLS at `theta0` is
+/// not finite, as [`levenberg_marquardt`] does.
 pub fn fit_l21(
     problem: &Problem,
     theta0: &[f64],
@@ -231,6 +234,7 @@ pub fn fit_l21(
     let m_res = problem.n_residuals() as f64;
     let mut theta = theta0.to_vec();
     let mut gn = problem.gauss_newton(&theta, free)?;
+    check_start(gn.vnls)?;
     let mut diag = marquardt_diagonal(&gn);
     let mut history = Vec::new();
     let mut prev_phi: Option<Vec<f64>> = None;

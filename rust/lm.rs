@@ -6,7 +6,9 @@
 
 use crate::dense::{cholesky, cholesky_solve};
 use crate::error::{invalid, Result};
-use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
+use crate::fit::{
+    check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
+};
 use crate::layout::FreeSet;
 use crate::problem::{GaussNewton, Problem};
 use faer::Mat;
@@ -100,6 +102,9 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
 }
 
 /// Levenberg-Marquardt from `theta0` over the free parameters.
+///
+/// Fails ([`crate::Error::InvalidArgument`] named `model`) when V_NLS at
+/// `theta0` is not finite.
 pub fn levenberg_marquardt(
     problem: &Problem,
     theta0: &[f64],
@@ -111,6 +116,7 @@ pub fn levenberg_marquardt(
     let start = Instant::now();
     let mut theta = theta0.to_vec();
     let mut gn = problem.gauss_newton(&theta, free)?;
+    check_start(gn.vnls)?;
     let mut history = Vec::new();
     let finish = |theta: Vec<f64>, vnls: f64, history: Vec<Iteration>, stop: Stop| Fit {
         theta,

@@ -12,7 +12,8 @@ pyo3::create_exception!(
     _core,
     SingularModelError,
     pyo3::exceptions::PyArithmeticError,
-    "zI - A(p) is singular at some scheduling point and frequency."
+    "zI - A(p) is singular, or the frequency response overflowed, at some scheduling point \
+     and frequency."
 );
 
 /// The compiled core of lpvid (private: use the `lpvid` package).
