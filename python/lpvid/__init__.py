@@ -8,6 +8,7 @@ Pipeleers and Swevers, 2018).
 
 from lpvid import datasets, plots, report, robust
 from lpvid._core import SingularModelError
+from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
@@ -22,8 +23,6 @@ from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.robust import Consistency, consistency, global_start, initial_candidates
 from lpvid.smile import smile, smile_candidates
 from lpvid.subspace import fd_subspace
-
-__version__ = "0.1.0"
 
 __all__ = [
     "Basis",

@@ -20,6 +20,8 @@ pyo3::create_exception!(
 #[pymodule]
 #[pyo3(name = "_core")]
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The package version, from Cargo.toml (lpvid.__version__).
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add(
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),
