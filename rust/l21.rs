@@ -416,17 +416,10 @@ pub fn single_cone_step(
         n_residuals: m_res,
     };
     let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol));
+    // g^T d + d^T (J^T J + mu D) d = -predicted decrease + mu d^T D d.
     let objective = solved.step.as_ref().map_or(f64::NAN, |d| {
-        let m = gn.dim();
-        let mut quad = 0.0;
-        for j in 0..m {
-            for i in 0..m {
-                let h = gn.gram[i + j * m] + if i == j { mu * diag[i] } else { 0.0 };
-                quad += d[i] * h * d[j];
-            }
-        }
-        let lin: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
-        (lin + quad) / m_res + cone.penalty(Some(d))
+        let damping: f64 = diag.iter().zip(d).map(|(w, x)| mu * w * x * x).sum();
+        (damping - predicted_decrease(&gn, d)) / m_res + cone.penalty(Some(d))
     });
     Ok(ConeStepReport {
         step: solved.step,
