@@ -2,13 +2,11 @@
 //! and their frequency response.
 //!
 //! The response at many frequencies uses the Hessenberg form of `A`
-//! (Laub, 1981): `A = Q H Q^T` once per model (nalgebra's reduction), after
-//! which every frequency costs one `O(n^2)` factorisation of the Hessenberg
-//! matrix `zI - H` (written here, four frequencies at a time).
+//! (Laub, 1981): `A = Q H Q^T` once per model, after which every frequency
+//! costs one `O(n^2)` factorisation of the Hessenberg matrix `zI - H`.
 
 use crate::lanes::{Cx, LANES};
 use crate::layout::{Matrix, Shape};
-use nalgebra::DMatrix;
 use num_complex::Complex64 as C64;
 
 /// `A(p)`, `B(p)`, `C(p)`, `D(p)` at one scheduling value, column-major.
@@ -63,20 +61,79 @@ pub struct Hessenberg {
 }
 
 impl Hessenberg {
-    /// Reduce a frozen model (nalgebra's Householder reduction).
+    /// Reduce a frozen model (Householder reflections).
     pub fn new(shape: &Shape, m: &Frozen) -> Self {
         let (n, r, l) = (shape.n, shape.r, shape.l);
-        let a = DMatrix::from_column_slice(n, n, &m.a);
-        let (q, h) = nalgebra::linalg::Hessenberg::new(a).unpack();
-        let bh = q.tr_mul(&DMatrix::from_column_slice(n, r, &m.b));
-        let ch = DMatrix::from_column_slice(l, n, &m.c) * &q;
+        let mut h = m.a.clone();
+        let mut q = vec![0.0; n * n];
+        for k in 0..n {
+            q[k + k * n] = 1.0;
+        }
+        let mut v = vec![0.0; n];
+        for k in 0..n.saturating_sub(2) {
+            // Householder vector annihilating h[k+2.., k].
+            let alpha: f64 = (k + 1..n).map(|i| h[i + k * n].powi(2)).sum::<f64>().sqrt();
+            if alpha == 0.0 {
+                continue;
+            }
+            let x0 = h[k + 1 + k * n];
+            let beta = if x0 >= 0.0 { -alpha } else { alpha };
+            v[..=k].iter_mut().for_each(|e| *e = 0.0);
+            v[k + 1] = x0 - beta;
+            for i in k + 2..n {
+                v[i] = h[i + k * n];
+            }
+            let vv: f64 = v[k + 1..].iter().map(|e| e * e).sum();
+            if vv == 0.0 {
+                continue;
+            }
+            let tau = 2.0 / vv;
+            // H <- (I - tau v v^T) H
+            for j in 0..n {
+                let col = &mut h[j * n..(j + 1) * n];
+                let s: f64 = (k + 1..n).map(|i| v[i] * col[i]).sum::<f64>() * tau;
+                for i in k + 1..n {
+                    col[i] -= s * v[i];
+                }
+            }
+            // H <- H (I - tau v v^T), Q <- Q (I - tau v v^T)
+            for mat in [&mut h, &mut q] {
+                let mut w = vec![0.0; n];
+                for j in k + 1..n {
+                    for i in 0..n {
+                        w[i] += mat[i + j * n] * v[j];
+                    }
+                }
+                for j in k + 1..n {
+                    let f = tau * v[j];
+                    for i in 0..n {
+                        mat[i + j * n] -= w[i] * f;
+                    }
+                }
+            }
+            for i in k + 2..n {
+                h[i + k * n] = 0.0;
+            }
+        }
+        let mut bh = vec![0.0; n * r];
+        for c in 0..r {
+            for i in 0..n {
+                bh[i + c * n] = (0..n).map(|a| q[a + i * n] * m.b[a + c * n]).sum();
+            }
+        }
+        let mut ch = vec![0.0; l * n];
+        for j in 0..n {
+            for i in 0..l {
+                ch[i + j * l] = (0..n).map(|a| m.c[i + a * l] * q[a + j * n]).sum();
+            }
+        }
         Hessenberg {
             r,
             l,
-            h: h.data.into(),
-            q: q.data.into(),
-            bh: bh.data.into(),
-            ch: ch.data.into(),
+            h,
+            q,
+            bh,
+            ch,
             d: m.d.clone(),
         }
     }
