@@ -164,6 +164,7 @@ def test_divergence_warns_with_the_sample_and_the_scheduling_value():
     with pytest.warns(RuntimeWarning, match=r"sample 309 \(p = 3\.09\)") as caught:
         y = model.simulate(np.zeros(T), p, x0=[1.0])
     assert len(caught) == 1
+    assert caught[0].filename == __file__  # points at the caller's line
     # The outputs come back as computed: 10^t up to the divergence.
     assert np.all(np.isfinite(y[:309])) and not np.isfinite(y[309, 0])
     assert np.allclose(y[:309, 0], 10.0 ** np.arange(309), rtol=1e-12, atol=0)

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid import _core
-from lpvid._checks import positive_float, real_array, sample_time
+from lpvid import _core, _simulate
+from lpvid._checks import real_array, sample_time
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
 
@@ -19,9 +18,6 @@ if TYPE_CHECKING:
     from lpvid.groups import GroupNorms
 
 __all__ = ["LpvModel"]
-
-# What `LpvModel.simulate` does when the simulation diverges.
-_ON_DIVERGENCE = ("warn", "raise")
 
 
 def _coefficients(value: Any, name: str, n_coef: int | None) -> NDArray[np.float64]:
@@ -330,95 +326,15 @@ class LpvModel:
         array([0.  , 1.  , 1.5 , 1.75])
 
         """
-        n, r, l, nb = self.shape
-        if on_divergence not in _ON_DIVERGENCE:
-            raise ValueError(
-                f"on_divergence: expected one of {_ON_DIVERGENCE}, got {on_divergence!r}"
-            )
-        u_arr = real_array(u, "u", ndim=(1, 2))
-        if u_arr.ndim == 1:
-            if r != 1:
-                raise ValueError(
-                    f"u: the model has {r} inputs: expected shape (T, {r}), got {u_arr.shape}"
-                )
-            u_arr = u_arr[:, None]
-        if u_arr.shape[1] != r:
-            raise ValueError(
-                f"u: expected shape (T, {r}) for a model with {r} inputs, got {u_arr.shape}"
-            )
-        t_len = u_arr.shape[0]
-        if t_len == 0:
-            raise ValueError("u: needs at least one sample")
-        p_arr = real_array(p, "p", ndim=(0, 1, 2))
-        n_params = self.basis.n_params
-        if p_arr.ndim == 0:
-            if n_params != 1:
-                raise ValueError(
-                    f"p: the basis takes {n_params} scheduling parameters: expected shape "
-                    f"(T, {n_params}), got a single number"
-                )
-            p_arr = np.full(t_len, float(p_arr))
-        if p_arr.shape[0] != t_len:
-            raise ValueError(
-                f"p: expected one scheduling value per sample of u (T={t_len}), "
-                f"got {p_arr.shape[0]}"
-            )
-        if p_arr.ndim == 1 and n_params != 1:
-            raise ValueError(
-                f"p: the basis takes {n_params} scheduling parameters: expected shape "
-                f"(T, {n_params}), got {p_arr.shape}"
-            )
-        psi = np.ascontiguousarray(self.basis_values(p_arr), dtype=np.float64)
-        if x0 is None:
-            x_init = np.zeros(n)
-        else:
-            x_init = real_array(x0, "x0", ndim=1)
-            if x_init.shape != (n,):
-                raise ValueError(f"x0: expected {n} initial states, got shape {x_init.shape}")
-        if self.Ts is not None:
-            if dt is not None:
-                step = positive_float(dt, "dt")
-                if not np.isclose(step, self.Ts, rtol=1e-9, atol=0.0):
-                    raise ValueError(
-                        f"dt: a discrete-time model runs at its sample time Ts={self.Ts:g} s, "
-                        f"got dt={step:g}; leave dt out"
-                    )
-            hold = None
-        else:
-            if dt is None:
-                raise ValueError(
-                    "dt: a continuous-time model needs the sample time of u in seconds "
-                    "(zero-order hold), e.g. dt=1e-3"
-                )
-            hold = positive_float(dt, "dt")
-        # u_arr and psi are this call's own arrays: the core may read them
-        # without the GIL.
-        y, x, diverged = _core.simulate(
-            n,
-            r,
-            l,
-            nb,
-            self.theta,
-            psi.ravel(),
-            np.ascontiguousarray(u_arr).ravel(),
-            x_init,
-            hold,
-            bool(return_states),
+        return _simulate.simulate(
+            self,
+            u,
+            p,
+            x0,
+            dt=dt,
+            return_states=return_states,
+            on_divergence=on_divergence,
         )
-        if diverged is not None:
-            message = (
-                f"simulate: the simulation left the range of floating point at sample "
-                f"{diverged} (p = {p_arr[diverged].tolist()}): the model is unstable along "
-                f"the scheduling trajectory; values from there on are Inf or NaN"
-            )
-            if on_divergence == "raise":
-                raise ValueError(message)
-            warnings.warn(message, RuntimeWarning, stacklevel=2)
-        y = y.reshape(t_len, l)
-        if return_states:
-            assert x is not None
-            return y, x.reshape(t_len + 1, n)
-        return y
 
     def poles(self, p: ArrayLike) -> NDArray[np.complex128]:
         """Eigenvalues of ``A(p)`` at one scheduling value."""
