@@ -7,7 +7,9 @@
 //! is kept when it lowers `V_NLS` by more than about `gamma M`.
 
 use crate::error::{invalid, Result};
-use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
+use crate::fit::{
+    check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
+};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::objective::Objective;
@@ -215,7 +217,8 @@ fn settled(magnitudes: &[f64], previous: &[f64], s: &L21Settings) -> bool {
 /// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
 /// `gamma = 0` the problem is plain nonlinear least squares and the fit is
 /// [`levenberg_marquardt`] with its default settings (the cone steps would
-/// reproduce its steps at a higher price).
+/// reproduce its steps at a higher price). Fails when V_NLS at `theta0` is
+/// not finite, as [`levenberg_marquardt`] does.
 pub fn fit_l21(
     problem: &dyn Objective,
     theta0: &[f64],
@@ -244,6 +247,7 @@ pub fn fit_l21(
     let m_res = problem.n_residuals() as f64;
     let mut theta = theta0.to_vec();
     let mut gn = problem.gauss_newton(&theta, free)?;
+    check_start(gn.vnls)?;
     let mut diag = marquardt_diagonal(&gn);
     let mut history = Vec::new();
     let mut prev_phi: Option<Vec<f64>> = None;
@@ -424,17 +428,10 @@ pub fn single_cone_step(
         n_residuals: m_res,
     };
     let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol));
+    // g^T d + d^T (J^T J + mu D) d = -predicted decrease + mu d^T D d.
     let objective = solved.step.as_ref().map_or(f64::NAN, |d| {
-        let m = gn.dim();
-        let mut quad = 0.0;
-        for j in 0..m {
-            for i in 0..m {
-                let h = gn.gram[i + j * m] + if i == j { mu * diag[i] } else { 0.0 };
-                quad += d[i] * h * d[j];
-            }
-        }
-        let lin: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
-        (lin + quad) / m_res + cone.penalty(Some(d))
+        let damping: f64 = diag.iter().zip(d).map(|(w, x)| mu * w * x * x).sum();
+        (damping - predicted_decrease(&gn, d)) / m_res + cone.penalty(Some(d))
     });
     Ok(ConeStepReport {
         step: solved.step,

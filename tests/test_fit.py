@@ -206,6 +206,22 @@ def test_ctrl_c_returns_the_best_model_so_far(case, python_sigint):
     assert fit.vnls == pytest.approx(lpvid.vnls(fit.model, data), rel=1e-12)
 
 
+def test_a_start_whose_vnls_is_not_finite_is_refused(case):
+    start, data, _ = case
+    # |G| ~ 1e200 / sigma ~ 1e-3: every residual is finite, V_NLS overflows.
+    huge = lpvid.LpvModel(start.A, start.B * 1e100, start.C * 1e100, start.D, start.basis, Ts=TS)
+    assert np.all(np.isfinite(huge.frf(data.freqs_hz, data.p)))
+    message = "model: V_NLS at the start is not finite"
+    for fit in [
+        lambda: lpvid.fit_nls(huge, data),
+        lambda: lpvid.fit_l21(huge, data, gamma=0.1),
+        lambda: lpvid.fit_l21(huge, data, gamma=0.0),
+        lambda: lpvid.l21_path(huge, data, [0.1, 0.01]),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            fit()
+
+
 @pytest.mark.parametrize(
     "kwargs, exc, name",
     [

@@ -7,6 +7,7 @@ Pipeleers and Swevers, 2018).
 """
 
 from lpvid import datasets, initial, plots, readers, report
+from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
@@ -30,8 +31,6 @@ from lpvid.model import LpvModel
 from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
-
-__version__ = "0.1.0"
 
 __all__ = [
     "Basis",
