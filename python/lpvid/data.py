@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
-from lpvid._files import write_atomic
+from lpvid._files import mat_variables, npz_arrays, write_atomic
 from lpvid.readers import read_experiment
 from lpvid.schedule import scheduling_range
 
@@ -342,18 +342,9 @@ class FrfData:
         p = Path(path)
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            try:
-                with np.load(p, allow_pickle=False) as f:
-                    raw = {k: f[k] for k in f.files}
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .npz file ({exc})") from exc
+            raw = _read(npz_arrays, p)
         elif suffix == ".mat":
-            from scipy.io import loadmat
-
-            try:
-                raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
-            except (OSError, ValueError, TypeError) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+            raw = _read(mat_variables, p)
         else:
             raise ValueError(f"path: expected a .npz or .mat file, got {p.name!r}")
         missing = [k for k in ("p", "freqs_hz", "G") if k not in raw]
@@ -492,3 +483,10 @@ class FrfData:
             raise type(exc)(f"{Path(manifest).name}: {exc}") from exc
         data.provenance = exp.provenance
         return data
+
+
+def _read(reader: Any, path: Path) -> dict[str, Any]:
+    try:
+        return reader(path)
+    except ValueError as exc:
+        raise ValueError(f"path: {exc}") from exc

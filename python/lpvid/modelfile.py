@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from lpvid._files import write_atomic
+from lpvid._files import mat_variables, write_atomic
 from lpvid.basis import basis_from_dict
 from lpvid.model import LpvModel
 
@@ -142,12 +142,10 @@ def load_model(path: str | os.PathLike[str]) -> LpvModel:
     """Read a model file (``.json`` or ``.mat`` written by lpvid); see :meth:`LpvModel.load`."""
     p = Path(path)
     if p.suffix.lower() == ".mat":
-        from scipy.io import loadmat
-
         try:
-            raw = loadmat(p).get("lpvid_model")
-        except (OSError, ValueError, TypeError) as exc:
-            raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+            raw = mat_variables(p).get("lpvid_model")
+        except ValueError as exc:
+            raise ValueError(f"path: {exc}") from exc
         if raw is None or raw.dtype.kind != "U":
             raise ValueError(f"path: {p.name} is not an lpvid model file (no lpvid_model)")
         data = str(raw.ravel()[0]).encode()

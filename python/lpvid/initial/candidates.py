@@ -19,7 +19,7 @@ from typing import Any
 from lpvid._checks import positive_int
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
-from lpvid.cost import vnls
+from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.frozen import frozen_stable
 from lpvid.initial.continuation import best_determined, continue_local

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid.cost import vnls
+from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.frozen import frozen_stable
