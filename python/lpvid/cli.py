@@ -278,6 +278,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+
     def say_warning(message: Any, category: Any, *rest: Any, **kw: Any) -> None:
         print(f"lpvid {args.command}: warning: {message}", file=sys.stderr, flush=True)
 
