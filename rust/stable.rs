@@ -21,10 +21,8 @@
 use crate::error::{invalid, Error, Result};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::objective::{GaussNewton, Objective};
-use faer::diag::Diag;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::evd::{self, ComputeEigenvectors};
-use faer::{Mat, Par};
+use nalgebra::linalg::Schur;
+use nalgebra::DMatrix;
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -51,7 +49,11 @@ pub fn margin(poles: &[C64], discrete: bool) -> f64 {
     }
 }
 
-/// Eigenvalues of a real `n x n` matrix (column-major).
+/// Most QR sweeps of the Schur decomposition before giving up.
+const MAX_SWEEPS: usize = 10_000;
+
+/// Eigenvalues of a real `n x n` matrix (column-major), by nalgebra's
+/// Schur decomposition (Francis double-shift QR).
 pub fn eigenvalues(a: &[f64], n: usize) -> Result<Vec<C64>> {
     if a.len() != n * n {
         return Err(invalid(
@@ -65,31 +67,14 @@ pub fn eigenvalues(a: &[f64], n: usize) -> Result<Vec<C64>> {
     if a.iter().any(|v| !v.is_finite()) {
         return Err(Error::Numerical("A(p) contains NaN or Inf".into()));
     }
-    let mat = Mat::from_fn(n, n, |i, j| a[i + j * n]);
-    let mut re = Diag::<f64>::zeros(n);
-    let mut im = Diag::<f64>::zeros(n);
-    let par = Par::Seq;
-    let req = evd::evd_scratch::<f64>(
-        n,
-        ComputeEigenvectors::No,
-        ComputeEigenvectors::No,
-        par,
-        Default::default(),
-    );
-    let mut buf = MemBuffer::new(req);
-    evd::evd_real(
-        mat.as_ref(),
-        re.as_mut(),
-        im.as_mut(),
-        None,
-        None,
-        par,
-        MemStack::new(&mut buf),
-        Default::default(),
-    )
-    .map_err(|e| Error::Numerical(format!("eigenvalues of A(p): {e:?}")))?;
-    Ok((0..n)
-        .map(|i| C64::new(re.column_vector()[i], im.column_vector()[i]))
+    let m = DMatrix::from_column_slice(n, n, a);
+    let schur = Schur::try_new(m, f64::EPSILON, MAX_SWEEPS).ok_or_else(|| {
+        Error::Numerical("eigenvalues of A(p): the QR iteration did not converge".into())
+    })?;
+    Ok(schur
+        .complex_eigenvalues()
+        .iter()
+        .map(|z| C64::new(z.re, z.im))
         .collect())
 }
 
@@ -382,6 +367,36 @@ mod tests {
         let all = range.margins(&shape, &theta).expect("evaluates");
         let min = all.iter().cloned().fold(f64::INFINITY, f64::min);
         assert_eq!(min, worst);
+    }
+
+    #[test]
+    fn levenberg_marquardt_stays_stable() {
+        // Data of x+ = 1.05 x + u, y = x (unstable): the unconstrained fit
+        // finds a = 1.05, the fit through Stable stops inside the unit circle.
+        let shape = Shape::new(1, 1, 1, 0).expect("valid shape");
+        let z: Vec<C64> = (1..40)
+            .map(|k| C64::from_polar(1.0, 0.08 * k as f64))
+            .collect();
+        let g: Vec<C64> = z.iter().map(|&z| 1.0 / (z - 1.05)).collect();
+        let data = crate::data::FrfData::new(1, 1, 1, z, g, &vec![1.0; 39]).expect("valid data");
+        let problem = crate::Problem::new(shape, data, &[]).expect("valid problem");
+        let theta0 = vec![0.5, 1.0, 1.0, 0.0];
+        let free = FreeSet::from_mask(&[true, false, false, false]);
+        let settings = crate::LmSettings::default();
+        let mut silent = crate::Silent;
+        let free_fit = crate::levenberg_marquardt(&problem, &theta0, &free, &settings, &mut silent)
+            .expect("fits");
+        assert!((free_fit.theta[0] - 1.05).abs() < 1e-6);
+        let range = FrozenRange::new(0, &[], 1, 1, true).expect("valid range");
+        let stable = Stable::new(&problem, range, 1e-6).expect("valid tolerance");
+        let fit = crate::levenberg_marquardt(&stable, &theta0, &free, &settings, &mut silent)
+            .expect("fits");
+        assert!(
+            fit.theta[0] < 1.0 - 1e-6 && fit.theta[0] > 0.9,
+            "{}",
+            fit.theta[0]
+        );
+        assert!(fit.vnls > free_fit.vnls);
     }
 
     #[test]

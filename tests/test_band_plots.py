@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,3 +113,19 @@ def test_report_has_the_trust_section_and_figures(tmp_path, monkeypatch):
     model = lpvid.LpvModel.load(tmp_path / "model.json")
     assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, data), rel=1e-12)
     assert numbers["stable"] is True and numbers["covariance_rank"] == res.covariance.rank
+
+
+def test_the_readme_example_runs(monkeypatch, capsys):
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = text.split("## Trusting the model between the points", 1)[1]
+    code = section.split("```python", 1)[1].split("```", 1)[0]
+    scope: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        exec(compile(code, "README.md", "exec"), scope)
+    assert scope["std"].shape == scope["result"].model.frf(scope["f"], scope["p"]).shape
+    np.testing.assert_allclose(scope["band"], band_radius(0.95) * scope["std"])
+    rep = scope["rep"]
+    assert rep.stable and rep.quadratic is True  # as the README says of the stage
+    assert scope["safe"].stability.stable
+    assert "frozen models stable over p in" in capsys.readouterr().out

@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import random_lpv
 
 import lpvid
 from lpvid import _core
@@ -49,14 +50,17 @@ def test_margin_rule_is_the_cores(rng, discrete):
         assert (py > 0) == stable
 
 
-def test_core_check_points_agree_with_numpy(rng):
-    model = _scalar([0.5, 0.2, -0.45])
+@pytest.mark.parametrize("Ts", [0.01, None])
+def test_core_check_points_agree_with_numpy(rng, Ts):
+    # The core's eigenvalues (nalgebra's Schur form) against LAPACK's through numpy.
+    model = random_lpv(rng, n=6, r=1, l=2, nb=3, Ts=Ts)
     p = np.linspace(0, 1, 101)
-    rngs = _core.FrozenRange(2, model.basis_values(p).ravel(), 101, 10, True, 0.0)
-    core = rngs.margins(1, 1, 1, model.theta)
-    np.testing.assert_allclose(core, margins(model, p), rtol=1e-12, atol=1e-15)
-    k, worst = rngs.worst(1, 1, 1, model.theta)
+    pts = _core.FrozenRange(3, model.basis_values(p).ravel(), 101, 10, Ts is not None, 0.0)
+    core = pts.margins(6, 1, 2, model.theta)
+    np.testing.assert_allclose(core, margins(model, p), rtol=1e-9, atol=1e-12)
+    k, worst = pts.worst(6, 1, 2, model.theta)
     assert worst == pytest.approx(core.min()) and k == int(np.argmin(core))
+    assert len(pts) == 101
 
 
 def test_a_narrow_unstable_window_is_found():

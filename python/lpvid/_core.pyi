@@ -52,6 +52,34 @@ class Problem:
         self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
 
+class FrozenRange:
+    def __init__(
+        self,
+        nb: int,
+        basis: NDArray[np.float64],
+        n_points: int,
+        stride: int,
+        discrete: bool,
+        tol: float,
+    ) -> None: ...
+    def __len__(self) -> int: ...
+    def margins(
+        self, n: int, r: int, l: int, theta: NDArray[np.float64]
+    ) -> NDArray[np.float64]: ...
+    def worst(self, n: int, r: int, l: int, theta: NDArray[np.float64]) -> tuple[int, float]: ...
+
+def lti_jacobian(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    theta: NDArray[np.float64],
+    basis: NDArray[np.float64],
+    n_points: int,
+    z: NDArray[np.complex128],
+) -> NDArray[np.complex128]: ...
+def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ...
+
 Settings = dict[str, float | int | str]
 Callback = Callable[[dict[str, Any]], Any] | None
 
@@ -61,6 +89,7 @@ def fit_nls(
     free: NDArray[np.bool_] | None,
     settings: Settings,
     callback: Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def fit_l21(
     problem: Problem,
@@ -69,6 +98,7 @@ def fit_l21(
     free: NDArray[np.bool_] | None,
     settings: Settings,
     callback: Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def l21_path(
     problem: Problem,
@@ -78,6 +108,7 @@ def l21_path(
     free: NDArray[np.bool_] | None,
     settings: Settings,
     callback: Callback = None,
+    stable: FrozenRange | None = None,
 ) -> list[tuple[float, dict[str, Any]]]: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
