@@ -158,7 +158,8 @@ def fit_nls(
         stable set are refused (see :mod:`lpvid.trust.enforce`). The start
         must be stable.
     p_range : optional
-        Scheduling range for ``stable``; default the model's (its basis domain).
+        Scheduling range for ``stable``; default the model's (its basis
+        domain), else the data's.
 
     Returns
     -------
@@ -182,7 +183,7 @@ def fit_nls(
     raw = _stable_run(
         model,
         stable,
-        p_range,
+        _p_range_and_sup(model, data, p_range)[0] if stable else None,
         lambda rng: _core.fit_nls(problem, model.theta, free, settings, monitor, rng),
     )
     result = FitResult._from_core(raw, model, data.n_residuals)

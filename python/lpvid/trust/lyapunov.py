@@ -92,8 +92,12 @@ class LyapunovCertificate:
     scale: float
     kappa: float
 
-    def lyapunov_matrix_F(self, A: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``F`` for one frozen ``A`` (in the original scale): positive definite where certified."""
+    def inequality(self, A: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``F`` of the module notes for one frozen ``A(p)``: ``>= mu I`` on the certified range.
+
+        Continuous time: ``-(A^T P + P A) / scale``; discrete time
+        ``[[P, A^T P], [P A, P]]``.
+        """
         return _F(np.asarray(A, dtype=float) / self.scale, self.P, self.discrete)
 
 

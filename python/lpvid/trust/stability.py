@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid.frozen import frozen_A, frozen_poles, stability_margin
+from lpvid.frozen import frozen_poles, stability_margin
 from lpvid.model import LpvModel
 from lpvid.trust.lyapunov import LyapunovCertificate, quadratic_stability
 from lpvid.trust.ranges import as_convention, box_grid, check_range, polynomial_A, to_p
@@ -376,8 +376,3 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
         note=note,
         seconds=time.perf_counter() - t0,
     )
-
-
-def frozen_matrix(model: LpvModel, p: float) -> NDArray[np.float64]:
-    """``A(p)`` at one scheduling value (for certificates and plots)."""
-    return frozen_A(model, [p])[0]
