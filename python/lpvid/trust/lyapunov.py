@@ -66,8 +66,8 @@ class LyapunovCertificate:
         The Lyapunov matrix (``V(x) = x^T P x``), with ``I <= P <= kappa I``
         up to the solver's accuracy.
     mu : float
-        Certified lower bound of the smallest eigenvalue of ``F(t)`` over the
-        range (positive: certified).
+        Certified lower bound of the smallest eigenvalue of ``F`` (module
+        notes, in the model's units) over the range (positive: certified).
     eps : float
         The solver's optimal ``eps``.
     residual : float
@@ -76,9 +76,6 @@ class LyapunovCertificate:
         Degree of ``A(t)`` in the scheduling variable.
     discrete : bool
         Discrete time (the Stein form) or continuous time.
-    scale : float
-        Continuous time: ``A`` was divided by this (it does not change the
-        inequality's sign); 1 in discrete time.
     kappa : float
         Bound on the condition number of ``P`` searched.
     """
@@ -89,16 +86,14 @@ class LyapunovCertificate:
     residual: float
     degree: int
     discrete: bool
-    scale: float
     kappa: float
 
     def inequality(self, A: NDArray[np.float64]) -> NDArray[np.float64]:
         """``F`` of the module notes for one frozen ``A(p)``: ``>= mu I`` on the certified range.
 
-        Continuous time: ``-(A^T P + P A) / scale``; discrete time
-        ``[[P, A^T P], [P A, P]]``.
+        Continuous time ``-(A^T P + P A)``; discrete time ``[[P, A^T P], [P A, P]]``.
         """
-        return _F(np.asarray(A, dtype=float) / self.scale, self.P, self.discrete)
+        return _F(np.asarray(A, dtype=float), self.P, self.discrete)
 
 
 def _F(A: NDArray[np.float64], P: NDArray[np.float64], discrete: bool) -> NDArray[np.float64]:
@@ -277,25 +272,31 @@ def quadratic_stability(
     for (blocks, weight), Q in zip(grams, Qs, strict=True):
         w = 2.0 if any(p == 1 for p, _ in weight) else 1.0
         mu -= w * blocks * max(0.0, -float(np.linalg.eigvalsh(Q)[0]))
+    # Continuous time: F was computed for A / scale; in the model's units it is scale F.
     cert = LyapunovCertificate(
         P=P,
-        mu=float(mu),
-        eps=eps,
-        residual=residual,
+        mu=float(mu * scale),
+        eps=float(eps * scale),
+        residual=float(residual * scale),
         degree=d,
         discrete=discrete,
-        scale=scale,
         kappa=float(kappa),
     )
     p_min = float(np.linalg.eigvalsh(P)[0])
     form = "P - A(p)^T P A(p)" if discrete else "-(A(p)^T P + P A(p))"
     if mu > 0 and p_min > 0:
+        inequality = (
+            f"[[P, A(p)^T P], [P A(p), P]] >= {cert.mu:.3g} I (hence P - A(p)^T P A(p) > 0)"
+            if discrete
+            else f"-(A(p)^T P + P A(p)) >= {cert.mu:.3g} I"
+        )
         return (
             True,
             cert,
             (
-                f"quadratically stable: P > 0 with {form} >= {mu:.3g} I over the whole range "
-                f"(certified from the recomputed sum-of-squares identity, A(p) of degree {d})"
+                f"quadratically stable: a Lyapunov matrix P with I <= P <= {kappa:g} I and "
+                f"{inequality} for every p in the range (certified from the recomputed "
+                f"sum-of-squares identity, A(p) of degree {d})"
             ),
         )
     size = float(np.linalg.norm(P, 2)) * (1.0 + sum(float(np.linalg.norm(a, 2)) for a in A))
@@ -305,8 +306,8 @@ def quadratic_stability(
             cert,
             (
                 f"not quadratically stable: no Lyapunov matrix with I <= P <= {kappa:g} I makes "
-                f"{form} positive over the range (best eps = {eps:.3g}; the sum-of-squares form is "
-                "exact for polynomial dependence on one parameter)"
+                f"{form} positive over the range (best eps = {cert.eps:.3g}; the sum-of-squares "
+                "form is exact for polynomial dependence on one parameter)"
             ),
         )
     return (
