@@ -192,13 +192,17 @@ def fit_nls(
     return result
 
 
+def _check_stable(stable: Any) -> bool:
+    if not isinstance(stable, (bool, np.bool_)):
+        raise TypeError(f"stable: expected True or False, got {type(stable).__name__}")
+    return bool(stable)
+
+
 def _stable_run(
     model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
 ) -> dict[str, Any]:
     """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
-    if not isinstance(stable, (bool, np.bool_)):
-        raise TypeError(f"stable: expected True or False, got {type(stable).__name__}")
-    if not stable:
+    if not _check_stable(stable):
         return run(None)
     from lpvid.trust.enforce import run_stable
 
@@ -360,24 +364,17 @@ def l21_path(
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem = build_problem(model, data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
-    if stable:
-        from lpvid.trust.enforce import run_stable
+    if _check_stable(stable):
+        from lpvid.trust.enforce import stable_path
 
-        raws = []
-        current = model
-        for g in sorted(gs, reverse=True):
-            s_g = s.to_core(float(g))
-            raw = run_stable(
-                current,
-                rng,
-                lambda check, m=current, c=s_g: _core.fit_l21(
-                    problem, m.theta, sup, free, c, monitor, check
-                ),
-            )
-            raws.append((float(g), raw))
-            current = current.with_theta(raw["theta"])
-            if raw["interrupted"]:
-                break
+        raws = stable_path(
+            model,
+            rng,
+            gs,
+            lambda m, g, check: _core.fit_l21(
+                problem, m.theta, sup, free, s.to_core(g), monitor, check
+            ),
+        )
     else:
         raws = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
     results = [_l21_result(raw, model, data, g, rng, s.threshold) for g, raw in raws]
