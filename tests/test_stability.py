@@ -130,6 +130,11 @@ def test_bad_ranges_are_named():
     assert lpvid.stability(free, p_range=(0.0, 1.0), quadratic=False).stable
     with pytest.raises(TypeError, match="model"):
         lpvid.stability("model")
+    # An LTI model needs no range.
+    lti = lpvid.LpvModel([[[0.5, 0.2], [-0.2, 0.5]]], [[[1.0], [0.0]]], [[[1.0, 0.0]]], Ts=1.0)
+    rep = lpvid.stability(lti)
+    assert rep.stable and rep.margin == pytest.approx(1 - np.hypot(0.5, 0.2))
+    assert rep.quadratic is True
 
 
 def test_other_bases_use_the_grid_and_leave_quadratic_open():

@@ -27,6 +27,8 @@ _SLACK = 1e-9
 def check_range(model: LpvModel, p_range: Any) -> list[tuple[float, float]]:
     """The range as ``(lo, hi)`` pairs: given, else the model's; inside the basis domain.
 
+    An LTI model (no basis function) needs no range: ``[(0, 0)]``.
+
     Raises
     ------
     ValueError
@@ -36,6 +38,9 @@ def check_range(model: LpvModel, p_range: Any) -> list[tuple[float, float]]:
     if not isinstance(model, LpvModel):
         raise TypeError(f"model: expected an LpvModel, got {type(model).__name__}")
     value = p_range if p_range is not None else model.p_range
+    if value is None and model.n_basis == 0:
+        # An LTI model: the same frozen model everywhere.
+        return [(0.0, 0.0)] * model.basis.n_params
     if value is None:
         raise ValueError(
             "p_range: the model has no scheduling range (its basis has no domain); "

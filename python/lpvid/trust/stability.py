@@ -106,6 +106,11 @@ class StabilityReport:
             "exact crossing test" if self.method == "crossings" else "grid with refinement"
         ) + f", {self.n_checked} frozen models"
         state = "stable" if self.stable else "NOT stable"
+        if self.n_checked == 1:
+            first = (
+                f"the model does not depend on p and is {state}: margin {self.margin:.3g} ({kind})"
+            )
+            return f"{first}\n{self.note}"
         first = (
             f"frozen models {state} over p in {_fmt_range(self.p_range)}: smallest margin "
             f"{self.margin:.3g} ({kind}) at p = {where} ({how})"
@@ -124,6 +129,8 @@ def format_p(p: Any) -> str:
 
 def _fmt_range(rng: Any) -> str:
     pairs = [rng] if isinstance(rng, tuple) else rng
+    if all(lo == hi for lo, hi in pairs):
+        return "(" + ", ".join(f"{lo:g}" for lo, _ in pairs) + ")"
     return " x ".join(f"[{lo:g}, {hi:g}]" for lo, hi in pairs)
 
 
@@ -233,6 +240,8 @@ def _refine_1d(model: LpvModel, ps: NDArray, ms: NDArray) -> tuple[float, float,
     ps, ms = ps[order], ms[order]
     k = int(np.argmin(ms))
     best_p, best_m = float(ps[k]), float(ms[k])
+    if ps.size < 3:
+        return best_p, best_m, 0
     inner = (ms[1:-1] <= ms[:-2]) & (ms[1:-1] <= ms[2:])
     ends = [0] if ms[0] <= ms[1] else []
     ends += [ps.size - 1] if ms[-1] <= ms[-2] else []
@@ -332,6 +341,8 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
             crossings = to_p(roots, pairs[0])
         else:
             ts = np.linspace(-1.0, 1.0, GRID_POINTS)
+        if pairs[0][0] == pairs[0][1]:  # an LTI model: one frozen model
+            ts = np.zeros(1)
         ps = to_p(ts, pairs[0])
         ms = margins(model, ps[:, None])
         worst, margin, extra = _refine_1d(model, ps, ms)
