@@ -49,7 +49,8 @@ pub struct L21Settings {
     /// Accuracy of the cone solves (Clarabel's gap and feasibility tolerances).
     pub cone_tol: f64,
     /// Inner loop also stops when an accepted step lowers the objective by
-    /// less than `ftol` times its value.
+    /// less than `ftol` times its value (about `V_NLS / M`: the default
+    /// 1e-4 is far below the noise in `V_NLS / M`, `1 / sqrt(M)`).
     pub ftol: f64,
     /// Most outer (reweighting) iterations.
     pub max_outer: usize,
@@ -71,7 +72,7 @@ impl Default for L21Settings {
             dvnls_min: 1e-3,
             threshold: 1e-6,
             cone_tol: DEFAULT_CONE_TOL,
-            ftol: 1e-6,
+            ftol: 1e-4,
             max_outer: 20,
             max_inner: 10,
             lambda0: 1e-2,
