@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 import pytest
-from conftest import noisy_data, random_lpv
 
 import lpvid
+from lpvid.testing import noisy_data, random_lpv
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".mat"])

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from conftest import direct_frf, random_lpv
 
 import lpvid
+from lpvid.testing import direct_frf, random_lpv
 
 control = pytest.importorskip("control")
 

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 
 import lpvid
+from lpvid.testing import random_lpv
 
 
 def good():

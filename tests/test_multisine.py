@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import direct_frf
 from scipy import signal
 
 import lpvid
+from lpvid.testing import direct_frf
 
 
 def lti(rng: np.random.Generator, n: int, r: int, l: int, Ts: float = 1e-3, radius: float = 0.8):

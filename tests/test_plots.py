@@ -9,10 +9,10 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import direct_frf, noisy_data, random_lpv
 
 import lpvid
 from lpvid import plots
+from lpvid.testing import direct_frf, noisy_data, random_lpv
 
 mpl = pytest.importorskip("matplotlib")
 plt = pytest.importorskip("matplotlib.pyplot")

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 from scipy import signal
 from scipy.linalg import expm
 
 import lpvid
+from lpvid.testing import random_lpv
 
 
 def loop_simulation(model: lpvid.LpvModel, u: np.ndarray, p: np.ndarray, x0: np.ndarray):

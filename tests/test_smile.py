@@ -4,7 +4,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 from systems import (
     GANTRY_FREQS,
     GANTRY_MID,
@@ -20,6 +19,7 @@ from systems import (
 import lpvid
 from lpvid.coherent import CoherenceError, propagation_order
 from lpvid.smile import FORMS
+from lpvid.testing import random_lpv
 
 GANTRY_BASIS = lpvid.Polynomial(4, domain=(24.0, 48.0))
 

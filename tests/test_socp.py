@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from conftest import noisy_data, random_lpv
 
 import lpvid
 from lpvid import _core
 from lpvid.cost import build_problem, gauss_newton
+from lpvid.testing import noisy_data, random_lpv
 
 cp = pytest.importorskip("cvxpy")
 

@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 from scipy.linalg import block_diag, expm
 from systems import close_modes, gantry_like, lti_frf, modal_system, rel_err
 
 import lpvid
 from lpvid.subspace import bilinear_to_continuous, fd_subspace, max_order, reflect_unstable
+from lpvid.testing import random_lpv
 
 
 def mimo_ct(rng, l=3, r=2):
