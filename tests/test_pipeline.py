@@ -1,7 +1,6 @@
 """identify(), reports, model files and the command line, end to end."""
 
 import json
-import re
 
 import numpy as np
 import pytest
@@ -147,38 +146,3 @@ def test_fit_command_end_to_end(small_files, capsys):
     assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, data), rel=1e-12)
     assert f"{numbers['vnls']:.6g}" in printed
     assert model.basis == lpvid.Polynomial(4, domain=data.p_range)
-
-
-@pytest.mark.parametrize(
-    "argv, pattern",
-    [
-        (["fit"], "required"),
-        (["fit", "missing.npz", "--order", "6", "--out", "x"], "no such file"),
-        (["fit", "{id}", "--order", "6", "--basis", "cubic", "--out", "x"], "--basis"),
-        (["fit", "{id}", "--order", "0", "--out", "x"], "--order"),
-        (["fit", "{id}", "--order", "six", "--out", "x"], "--order"),
-        (["fit", "{id}", "--order", "6", "--fix", "E", "--out", "x"], "--fix"),
-        (["fit", "{id}", "--order", "999", "--out", "x"], "order"),
-        (["demo", "--data", "nope"], "--data"),
-        (["frobnicate"], "invalid choice"),
-    ],
-)
-def test_cli_misuse_is_one_line_and_exit_code_2(small_files, capsys, argv, pattern, tmp_path):
-    argv = [a.replace("{id}", str(small_files / "id.npz")) for a in argv]
-    argv = [str(tmp_path / "x") if a == "x" else a for a in argv]
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    err = capsys.readouterr().err
-    assert code == 2
-    assert len(err.strip().splitlines()) == 1, err
-    assert re.search(re.escape(pattern), err), err
-
-
-def test_fit_help_speaks_to_engineers(capsys):
-    with pytest.raises(SystemExit):
-        main(["fit", "--help"])
-    text = capsys.readouterr().out
-    for word in ("--order", "--basis", "--validation", "scheduling", "gamma", "sigma"):
-        assert word in text

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import os
+import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -338,16 +339,20 @@ class FrfData:
         suffix = p.suffix.lower()
         if suffix == ".npz":
             try:
-                with np.load(p, allow_pickle=False) as f:
+                # np.load leaves a file it opened open when it is no zip file
+                with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as f:
                     raw = {k: f[k] for k in f.files}
-            except (OSError, ValueError) as exc:
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
                 raise ValueError(f"path: {p.name} is not a readable .npz file ({exc})") from exc
         elif suffix == ".mat":
             from scipy.io import loadmat
+            from scipy.io.matlab import MatReadError
 
             try:
                 raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
-            except (OSError, ValueError, TypeError) as exc:
+            except FileNotFoundError:
+                raise
+            except (OSError, ValueError, TypeError, NotImplementedError, MatReadError) as exc:
                 raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
         else:
             raise ValueError(f"path: expected a .npz or .mat file, got {p.name!r}")
@@ -355,17 +360,17 @@ class FrfData:
         if missing:
             raise ValueError(f"path: {p.name} lacks the variables {', '.join(missing)}")
         G = np.asarray(raw["G"])
-        p_val = np.asarray(raw["p"], dtype=float)
-        freqs = np.asarray(raw["freqs_hz"], dtype=float).ravel()
+        p_val = real_array(raw["p"], "p")
+        freqs = real_array(raw["freqs_hz"], "freqs_hz").ravel()
         if suffix == ".mat":
             # MATLAB stores vectors as 1 x N matrices.
             if p_val.ndim == 2 and 1 in p_val.shape and G.shape[0] == p_val.size:
                 p_val = p_val.ravel()
             if G.ndim == 4 and G.shape[0] == 1 and p_val.size == 1:
                 p_val = p_val.ravel()
-        ts = raw.get("Ts")
-        ts_val = (
-            None if ts is None or np.asarray(ts).size == 0 else float(np.asarray(ts).ravel()[0])
-        )
+        ts = None if raw.get("Ts") is None else real_array(raw["Ts"], "Ts")
+        if ts is not None and ts.size > 1:
+            raise ValueError(f"Ts: expected one number (or none), got shape {ts.shape}")
+        ts_val = None if ts is None or ts.size == 0 else float(ts.ravel()[0])
         sigma = raw.get("sigma")
         return cls(p_val, freqs, G, sigma, ts_val)

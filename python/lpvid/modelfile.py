@@ -201,12 +201,13 @@ def _parse(data: bytes, name: str) -> dict[str, Any]:
 def _read_mat(p: Path) -> dict[str, Any]:
     """The ``content`` held by the MATLAB variables of ``p``, checked against ``lpvid_model``."""
     from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
 
     try:
         raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
     except FileNotFoundError:
         raise
-    except (OSError, ValueError, TypeError, NotImplementedError) as exc:
+    except (OSError, ValueError, TypeError, NotImplementedError, MatReadError) as exc:
         raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
     embedded = None
     if "lpvid_model" in raw:

@@ -20,6 +20,7 @@ from lpvid.basis import Basis
 from lpvid.cost import vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_l21
+from lpvid.layout import free_mask
 from lpvid.local import LocalModels, identify_lti
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
@@ -177,17 +178,50 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
         return None
     if not isinstance(validation, FrfData):
         raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
-    if (validation.n_outputs, validation.n_inputs, validation.n_params) != (
-        data.n_outputs,
-        data.n_inputs,
-        data.n_params,
-    ):
-        raise ValueError("validation: outputs, inputs or scheduling parameters differ from data's")
+
+    def sizes(d: FrfData) -> str:
+        return f"{d.n_outputs} outputs x {d.n_inputs} inputs, {d.n_params} scheduling parameter(s)"
+
+    if sizes(validation) != sizes(data):
+        raise ValueError(f"validation: has {sizes(validation)}; the data have {sizes(data)}")
     if (validation.Ts is None) != (data.Ts is None) or (
         data.Ts is not None and not np.isclose(validation.Ts, data.Ts, rtol=1e-12)  # type: ignore[arg-type]
     ):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
+
+
+def _check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
+    """Refuse an order whose LPV model has more parameters than the data have residuals.
+
+    The free parameters less the ``n^2`` of the state coordinates must not
+    exceed the ``M`` real residuals: beyond that the fit is undetermined
+    (and would take long to find out).
+    """
+
+    def excess(order: int) -> tuple[int, int]:
+        k, r, l = len(basis) + 1, data.n_inputs, data.n_outputs
+        layout = LpvModel(
+            np.zeros((k, order, order)),
+            np.zeros((k, order, r)),
+            np.zeros((k, l, order)),
+            basis=basis,
+        )
+        free = int(free_mask(layout, fixed).sum())
+        return free, free - order * order - data.n_residuals
+
+    free, over = excess(n)
+    if over > 0:
+        # the excess grows with the order: bisect for the largest order without one
+        limit, above = 0, n
+        while above - limit > 1:
+            mid = (limit + above) // 2
+            limit, above = (mid, above) if excess(mid)[1] <= 0 else (limit, mid)
+        raise ValueError(
+            f"order: {n} states with {len(basis)} basis functions give {free} free parameters; "
+            f"less the {n * n} of the state coordinates that is more than the "
+            f"{data.n_residuals} real residuals of the data (at most order {limit})"
+        )
 
 
 def _strictly_proper(fixed: Any) -> bool:
@@ -322,6 +356,11 @@ def identify(
             f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
             f"points, the data have {data.n_points}"
         )
+    if basis.n_params != data.n_params:
+        raise ValueError(
+            f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
+        )
+    _check_order(n, basis, data, fixed)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
