@@ -8,8 +8,6 @@ from lpvid import _core
 from lpvid.cost import build_problem, gauss_newton
 from lpvid.testing import noisy_data, random_lpv
 
-cp = pytest.importorskip("cvxpy")
-
 
 def weights_23(model, sup, eps):
     """phi and varphi of (23) and (25), written independently of the core."""
@@ -43,6 +41,7 @@ def group_slices(model):
 @pytest.mark.parametrize("fixed", [None, {"D": True, "A": [0]}])
 @pytest.mark.parametrize("gamma", [0.0, 0.05, 0.5])
 def test_cone_step_matches_cvxpy(rng, gamma, fixed):
+    cp = pytest.importorskip("cvxpy")
     model = random_lpv(rng, n=2, r=1, l=2, nb=2, Ts=0.01)
     # The true B does not depend on p: a penalised step should zero its groups.
     B = model.B.copy()
