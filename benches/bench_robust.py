@@ -10,8 +10,8 @@ Two problems:
 - the built-in gantry (``lpvid.datasets.gantry()``).
 
 For every noise seed it prints, for the plain route (identify_lti + every
-SMILE form + fit_nls) and for all routes of ``lpvid.robust.initial_candidates``,
-the candidate :func:`lpvid.robust.choose` keeps with validation data: V_NLS
+SMILE form + fit_nls) and for all routes of ``lpvid.initial.initial_candidates``,
+the candidate :func:`lpvid.initial.choose` keeps with validation data: V_NLS
 over the noise floor on identification and validation data. A route
 "succeeds" when it reaches 1.1 (identification) and 1.3 (validation).
 
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import lpvid
-from lpvid import robust
+from lpvid import initial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from systems import heavily_damped, lti_frf  # noqa: E402
@@ -46,7 +46,7 @@ def frf_data(p: np.ndarray, seed: int, rel: float = 0.01) -> lpvid.FrfData:
     return lpvid.FrfData(p, FREQS, G, sigma)
 
 
-def ok(c: robust.Candidate) -> bool:
+def ok(c: initial.Candidate) -> bool:
     return c.ratio < 1.1 and (c.validation_ratio or 0.0) < 1.3
 
 
@@ -59,10 +59,10 @@ def damped(seeds: int, degree: int) -> None:
     for seed in range(seeds):
         data, val = frf_data(P, seed), frf_data(MID, 100 + seed)
         t = time.perf_counter()
-        cands = robust.initial_candidates(data, 6, basis, validation=val)
+        cands = initial.initial_candidates(data, 6, basis, validation=val)
         times.append(time.perf_counter() - t)
-        plain, _ = robust.choose([c for c in cands if c.name.startswith("smile:")])
-        best, _ = robust.choose(cands)
+        plain, _ = initial.choose([c for c in cands if c.name.startswith("smile:")])
+        best, _ = initial.choose(cands)
         wins["plain"] += ok(plain)
         wins["robust"] += ok(best)
         print(
@@ -81,13 +81,13 @@ def gantry() -> None:
     t = time.perf_counter()
     local = lpvid.identify_lti(data, ds.order)
     print(f"\ngantry: local models {time.perf_counter() - t:.2f} s")
-    for route in robust.ROUTES:
+    for route in initial.ROUTES:
         t = time.perf_counter()
-        cands = robust.initial_candidates(
+        cands = initial.initial_candidates(
             data, ds.order, ds.basis, ds.fixed, validation=val, routes=(route,), local=local
         )
         dt = time.perf_counter() - t
-        best, _ = robust.choose(cands)
+        best, _ = initial.choose(cands)
         print(
             f"  {route:13s} {dt:5.2f} s, {len(cands)} candidates, best {best.name}: "
             f"V/floor {best.ratio:.3f}, validation {best.validation_ratio:.3f}"

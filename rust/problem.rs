@@ -10,6 +10,7 @@ use crate::error::{invalid, Error, Result};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::objective::{GaussNewton, Objective};
 use crate::response::with_constant;
 use faer::linalg::matmul::matmul;
 use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
@@ -33,27 +34,6 @@ pub struct Problem {
     /// For every entry of theta: its basis index `i` and its index in the
     /// LTI parameter vector `[vec A; vec B; vec C; vec D]`.
     param_map: Vec<(usize, usize)>,
-}
-
-/// V_NLS with its gradient and Gauss-Newton matrix at one `theta`,
-/// restricted to the free parameters.
-#[derive(Debug, Clone)]
-pub struct GaussNewton {
-    /// `V_NLS = r^T r`, `r` the real weighted residual.
-    pub vnls: f64,
-    /// The weighted complex residual `(G - Gm) / sigma`, `(N, F, l, r)`.
-    pub residual: Vec<C64>,
-    /// `dV/dtheta = 2 J^T r` over the free parameters.
-    pub gradient: Vec<f64>,
-    /// `J^T J` over the free parameters, symmetric, column-major.
-    pub gram: Vec<f64>,
-}
-
-impl GaussNewton {
-    /// Number of free parameters.
-    pub fn dim(&self) -> usize {
-        self.gradient.len()
-    }
 }
 
 /// A half-open range of frequency lines at one point: the unit of parallel work.
@@ -182,7 +162,6 @@ impl Problem {
         let (gradient, gram) = self.assemble(&grams, &jtr, free);
         Ok(GaussNewton {
             vnls,
-            residual,
             gradient,
             gram,
         })
@@ -434,4 +413,22 @@ struct TaskGram {
     point: usize,
     gram: Mat<f64>,
     jtr: Vec<f64>,
+}
+
+impl Objective for Problem {
+    fn shape(&self) -> &Shape {
+        Problem::shape(self)
+    }
+
+    fn n_residuals(&self) -> usize {
+        Problem::n_residuals(self)
+    }
+
+    fn cost(&self, theta: &[f64]) -> Result<f64> {
+        Problem::cost(self, theta)
+    }
+
+    fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
+        Problem::gauss_newton(self, theta, free)
+    }
 }

@@ -164,10 +164,12 @@ def test_order_too_high_names_the_largest_order_the_data_allow(files, tmp_path, 
     assert main(argv) == 2
     line = capsys.readouterr().err.strip()
     # poly:2 by default (Nb = 2): 3 (n^2 + 3 n + 2) free parameters for 2 outputs x
-    # 1 input, less the n^2 of the state coordinates, against the M residuals.
+    # 1 input, less the n^2 of the state coordinates, against the 2 M real
+    # equations of the M complex residuals.
     data = lpvid.FrfData.load(files / "id.npz")
     m = data.n_residuals
-    largest = max(n for n in range(1, 40) if 3 * (n * n + 3 * n + 2) - n * n <= m)
+    largest = max(n for n in range(1, 40) if 3 * (n * n + 3 * n + 2) - n * n <= 2 * m)
+    assert largest == 17
     assert f"at most order {largest}" in line
 
 

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.datasets import STAGE, _gantry_mechanics, _stage_parameters
+from lpvid.datasets import STAGE
+from lpvid.datasets.flexible_gantry import _gantry_mechanics
+from lpvid.datasets.positioning import _stage_parameters
 
 MAKERS = {"gantry": lpvid.datasets.gantry, "stage": lpvid.datasets.positioning_stage}
 

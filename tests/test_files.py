@@ -34,7 +34,7 @@ def test_data_files_of_other_kinds_are_refused(tmp_path):
         lpvid.FrfData([0.0], [1.0], np.ones((1, 1))).save(tmp_path / "x.csv")
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip file")
-    with pytest.raises(ValueError, match=r"^path: bad\.npz is not a readable \.npz file"):
+    with pytest.raises(ValueError, match=r"^path: bad\.npz: not a readable \.npz file"):
         lpvid.FrfData.load(bad)
     np.savez(tmp_path / "partial.npz", p=np.zeros(2))
     with pytest.raises(ValueError, match=r"^path: partial\.npz lacks the variables freqs_hz, G$"):

@@ -265,8 +265,9 @@ def test_fixed_parameters_never_move(case):
     fixed = {"D": True, "A": [0], "C": np.array([[True, False, False, False]] * 2)}
     mask = lpvid.fixed_mask(start, fixed)
     perturbed = start.with_theta(start.theta + 1e-4 * ~mask)
-    nls = lpvid.fit_nls(perturbed, data, fixed=fixed, max_iter=20)
-    reg = lpvid.fit_l21(nls.model, data, 0.01, fixed=fixed, max_outer=3)
+    # Few steps on purpose (only the fixed parameters matter here): no ConvergenceWarning.
+    nls = lpvid.fit_nls(perturbed, data, fixed=fixed, max_iter=20, warn=False)
+    reg = lpvid.fit_l21(nls.model, data, 0.01, fixed=fixed, max_outer=3, warn=False)
     for fit in (nls, reg):
         np.testing.assert_array_equal(fit.model.theta[mask], perturbed.theta[mask])
         assert np.any(fit.model.theta[~mask] != perturbed.theta[~mask])
@@ -321,7 +322,7 @@ def test_callback_errors_propagate(case):
         lpvid.fit_l21(start, data, 0.01, callback=broken)
 
 
-def test_ctrl_c_returns_the_best_model_so_far(case):
+def test_ctrl_c_returns_the_best_model_so_far(case, python_sigint):
     start, data, _ = case
     calls = []
 
@@ -331,9 +332,25 @@ def test_ctrl_c_returns_the_best_model_so_far(case):
             signal.raise_signal(signal.SIGINT)
 
     fit = lpvid.fit_nls(start, data, callback=interrupt)
-    assert fit.interrupted and fit.stop == "interrupted" and len(calls) == 3
+    assert fit.interrupted and fit.stop == "keyboard_interrupt" and len(calls) == 3
     assert fit.vnls <= lpvid.vnls(start, data)
     assert fit.vnls == pytest.approx(lpvid.vnls(fit.model, data), rel=1e-12)
+
+
+def test_a_start_whose_vnls_is_not_finite_is_refused(case):
+    start, data, _ = case
+    # |G| ~ 1e200 / sigma ~ 1e-3: every residual is finite, V_NLS overflows.
+    huge = lpvid.LpvModel(start.A, start.B * 1e100, start.C * 1e100, start.D, start.basis, Ts=TS)
+    assert np.all(np.isfinite(huge.frf(data.freqs_hz, data.p)))
+    message = "model: V_NLS at the start is not finite"
+    for fit in [
+        lambda: lpvid.fit_nls(huge, data),
+        lambda: lpvid.fit_l21(huge, data, gamma=0.1),
+        lambda: lpvid.fit_l21(huge, data, gamma=0.0),
+        lambda: lpvid.l21_path(huge, data, [0.1, 0.01]),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            fit()
 
 
 @pytest.mark.parametrize(
@@ -354,6 +371,12 @@ def test_ctrl_c_returns_the_best_model_so_far(case):
             ValueError,
             r"^fixed: unknown matrix name\(s\) \['Q'\]",
         ),
+        (dict(gamma=0.1, epsilon=1e-3), TypeError, r"^epsilon: not a setting of the l2,1 fit"),
+        (
+            dict(gamma=0.1, settings={"eps": 1e-3}),
+            TypeError,
+            r"^settings: expected an L21Settings, got dict",
+        ),
     ],
 )
 def test_bad_arguments(case, kwargs, exc, match):
@@ -370,3 +393,21 @@ def test_bad_nls_arguments(case):
         lpvid.fit_nls(start, data, lambda0=0.0)
     with pytest.raises(ValueError, match=r"^gammas: needs at least one value"):
         lpvid.l21_path(start, data, [])
+
+
+@pytest.mark.parametrize("gamma", [1e6, 1e300])
+def test_a_gamma_that_no_group_is_worth_returns_the_constant_model(case, gamma):
+    """Every penalised group ends exactly at zero; V_NLS is that of the constant model."""
+    start, data, nls = case
+    reg = lpvid.fit_l21(nls.model, data, gamma, warn=False)
+    assert reg.n_groups == 0
+    for x in reg.model.matrices().values():
+        assert np.all(x[1:] == 0.0)
+    groups = {x: list(range(1, start.n_basis + 1)) for x in "ABCD"}
+    mask = lpvid.fixed_mask(nls.model, groups)
+    constant = lpvid.fit_nls(
+        nls.model.with_theta(np.where(mask, 0.0, nls.model.theta)), data, mask, warn=False
+    )
+    # The l2,1 fit takes cone steps rather than LM steps on the constant part:
+    # close to the constant model's optimum, and never below it.
+    assert constant.vnls * (1 - 1e-9) <= reg.vnls <= 1.05 * constant.vnls

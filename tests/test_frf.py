@@ -48,6 +48,24 @@ def test_pole_on_the_imaginary_axis_raises(rng):
         model.frf([0.0, 1.0], [0.0])
 
 
+def test_overflowing_response_raises_with_point_and_line():
+    # |G| ~ 1e320 at the second point (p = 1) only: B(p) = 1e160 p.
+    model = lpvid.LpvModel(
+        [[[0.5]], [[0.0]]],
+        [[[0.0]], [[1e160]]],
+        [[[1e160]], [[0.0]]],
+        [[[0.0]], [[0.0]]],
+        lpvid.Polynomial(1),
+        Ts=1.0,
+    )
+    assert np.all(np.isfinite(model.frf([0.1, 0.2], [0.0])))
+    with pytest.raises(
+        lpvid.SingularModelError,
+        match=r"^the frequency response overflowed .* at scheduling point 1, frequency line 0",
+    ):
+        model.frf([0.1, 0.2], [0.0, 1.0])
+
+
 def test_at_interpolates_the_coefficients(rng):
     model = random_lpv(rng, 3, 2, 2, 2)
     s = 2 * 0.3 - 1  # domain (0, 1) mapped to [-1, 1]

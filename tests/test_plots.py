@@ -130,7 +130,7 @@ def test_frf_fit_draws_into_a_given_figure(rng, plt):
 def test_frf_fit_refuses_mismatched_input(rng, plt):
     model, data = _data(rng, l=2, r=1, Ts=0.01)
     other, _ = _data(rng, l=1, r=1, Ts=0.01)
-    with pytest.raises(ValueError, match=r"^data: 2 outputs x 1 inputs, but the model has 1 x 1"):
+    with pytest.raises(ValueError, match=r"^data: has 2 outputs x 1 inputs, the model 1 x 1"):
         plots.frf_fit(other, data)
     cont = lpvid.LpvModel(model.A, model.B, model.C, model.D, model.basis, Ts=None)
     with pytest.raises(
@@ -145,8 +145,11 @@ def test_frf_fit_refuses_mismatched_input(rng, plt):
         plots.frf_fit(model, data, points=[7])
     with pytest.raises(ValueError, match=r"^outputs: expected 2 names, got 1"):
         plots.frf_fit(model, data, outputs=["one"])
-    with pytest.raises(TypeError, match=r"^data: expected an lpvid\.FrfData"):
+    with pytest.raises(TypeError, match=r"^data: expected an FrfData, got ndarray"):
         plots.frf_fit(model, data.G)
+    two = lpvid.FrfData(np.c_[data.p, data.p], data.freqs_hz, data.G, data.sigma, Ts=data.Ts)
+    with pytest.raises(ValueError, match=r"^data: has 2 scheduling parameter\(s\)"):
+        plots.frf_fit(model, two)
 
 
 # -------------------------------------------------------------- magnitude surface

@@ -10,6 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from frf_files import coherence_for, write_uff
+
+import lpvid
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 
@@ -65,13 +68,26 @@ def test_readme_has_examples_with_stated_outputs():
     assert any("nonzero_groups" in expr for expr, _ in stated)
 
 
+def write_measured_files(folder: Path, text: str) -> None:
+    """The README's manifest and the UFF files it lists (the gantry's first two points)."""
+    data = lpvid.datasets.gantry().identification.subset([0, 1])
+    coh = coherence_for(data.G, data.sigma, 20)
+    for q, p in enumerate(data.p):
+        write_uff(folder / f"tube{int(p)}.uff", data.freqs_hz, data.G[q], coherence=coh[q])
+    (folder / "gantry.toml").write_text(text)
+
+
 def test_readme_python_examples_run_and_print_what_they_state(tmp_path, monkeypatch):
+    pytest.importorskip("pyuff")  # the measured-files example reads UFF
     # the examples write model.json and my-report/ into the working directory
+    # and read gantry.toml from it
     monkeypatch.chdir(tmp_path)
+    text = README.read_text()
+    write_measured_files(tmp_path, re.search(r"```toml\n(.*?)```", text, re.S).group(1))
     namespace: dict[str, object] = {}
     exec(PRELUDE, namespace)
     checked = 0
-    for k, block in enumerate(python_blocks(README.read_text())):
+    for k, block in enumerate(python_blocks(text)):
         with contextlib.redirect_stdout(io.StringIO()):
             exec(compile(block, f"README.md block {k + 1}", "exec"), namespace)
         for expr, value in stated_outputs(block):

@@ -1,4 +1,4 @@
-"""Initial estimates that survive poorly determined local models (lpvid.robust)."""
+"""Initial estimates that survive poorly determined local models (lpvid.initial)."""
 
 import numpy as np
 import pytest
@@ -14,7 +14,7 @@ from systems import (
 )
 
 import lpvid
-from lpvid import robust
+from lpvid import initial
 
 # ------------------------------------------------------------------ helpers
 DAMPED_FREQS = np.logspace(np.log10(2.0), np.log10(300.0), 150)
@@ -70,7 +70,7 @@ def three_modes(s, shift=None):
 # ------------------------------------------------------------------ diagnosis
 def test_consistency_passes_the_gantry_like_local_models(rng):
     locs = [lti(scramble(gantry_like(q), rng)) for q in GANTRY_P]
-    diag = robust.consistency(locs, GANTRY_P)
+    diag = initial.consistency(locs, GANTRY_P)
     assert diag.ok and diag.inconsistent == []
     assert np.all(diag.scores < 2.0)
     assert "consistent" in str(diag) and "inconsistent" not in str(diag)
@@ -82,7 +82,7 @@ def test_consistency_flags_a_pole_moved_by_a_large_factor(rng, q):
     locs = [
         lti(scramble(three_modes(s, (1, 30.0) if k == q else None), rng)) for k, s in enumerate(p)
     ]
-    diag = robust.consistency(locs, p)
+    diag = initial.consistency(locs, p)
     assert diag.inconsistent == [q]
     assert not diag.ok and diag.worst == q
     # The score of the odd point is far above the others'.
@@ -101,7 +101,7 @@ def test_consistency_flags_a_pair_split_into_real_poles():
     A = A.copy()
     A[2:4, 2:4] = np.diag([-0.8 * w, -1.2 * w])
     locs[3] = lti((A, B, C, D))
-    diag = robust.consistency(locs, p)
+    diag = initial.consistency(locs, p)
     assert diag.inconsistent == [3]
     assert "real pole" in diag.details[3]
 
@@ -115,26 +115,26 @@ def test_consistency_with_two_scheduling_parameters(rng):
         return three_modes(s, (2, 0.05) if odd else None)
 
     good = [lti(system(pq)) for pq in p]
-    assert robust.consistency(good, p).ok
+    assert initial.consistency(good, p).ok
     for q in (4, 0):
         locs = [lti(scramble(system(pq, k == q), rng)) for k, pq in enumerate(p)]
-        assert robust.consistency(locs, p).inconsistent == [q]
+        assert initial.consistency(locs, p).inconsistent == [q]
 
 
 def test_consistency_rejects_bad_input():
     m = lti(three_modes(0.0))
-    with pytest.raises(ValueError, match=r"^local_models: needs at least two models to compare"):
-        robust.consistency([m], [0.0])
+    with pytest.raises(ValueError, match=r"^local_models: needs at least 2 model\(s\), got 1"):
+        initial.consistency([m], [0.0])
     with pytest.raises(ValueError, match=r"^p: 2 scheduling values for 3 models"):
-        robust.consistency([m, m, m], [0.0, 1.0])
+        initial.consistency([m, m, m], [0.0, 1.0])
     with pytest.raises(ValueError, match=r"^p: required unless local_models is a LocalModels"):
-        robust.consistency([m, m], None)
+        initial.consistency([m, m], None)
     with pytest.raises(ValueError, match=r"^p: scheduling values must be distinct"):
-        robust.consistency([m, m], [1.0, 1.0])
+        initial.consistency([m, m], [1.0, 1.0])
     with pytest.raises(
         TypeError, match=r"^local_models: expected LocalModels or a list of LTI LpvModel"
     ):
-        robust.consistency(m, [0.0])
+        initial.consistency(m, [0.0])
 
 
 # ------------------------------------------------------------------ pole uncertainty
@@ -151,19 +151,19 @@ def test_pole_uncertainty_matches_the_scatter_of_refitted_poles():
     G = lti_frf(true, 2j * np.pi * freqs)[None]
     sigma = 0.02 * np.abs(G)
     model = lti(true)
-    ref = robust.pole_coordinates(model)
+    ref = initial.pole_coordinates(model)
     rng = np.random.default_rng(7)
     devs = []
     for _ in range(60):
         noise = sigma * (rng.normal(size=G.shape) + 1j * rng.normal(size=G.shape)) / np.sqrt(2)
         data = lpvid.FrfData([0.0], freqs, G + noise, sigma)
         fit = lpvid.fit_nls(model, data)
-        u = robust.pole_coordinates(fit.model)
+        u = initial.pole_coordinates(fit.model)
         rows, cols = linear_sum_assignment(np.abs(ref[:, None] - u[None, :]))
         devs.append(u[cols[np.argsort(rows)]] - ref)
     devs = np.array(devs)
     scatter = np.sqrt(np.mean(np.abs(devs - devs.mean(axis=0)) ** 2, axis=0))
-    predicted = robust.pole_uncertainty(model, lpvid.FrfData([0.0], freqs, G, sigma))
+    predicted = initial.pole_uncertainty(model, lpvid.FrfData([0.0], freqs, G, sigma))
     order = np.argsort(np.abs(np.linalg.eigvals(true[0])))
     ratio = predicted / scatter
     assert np.all((ratio > 0.75) & (ratio < 1.33)), ratio
@@ -174,7 +174,7 @@ def test_pole_uncertainty_matches_the_scatter_of_refitted_poles():
 # ------------------------------------------------------------------ continuation walk
 def test_continuation_order_walks_outwards_along_the_sorted_points():
     p = np.array([0.3, 0.0, 0.1, 0.4, 0.2])
-    order, parent = robust.continuation_order(p, root=2)  # root at p = 0.1
+    order, parent = initial.continuation_order(p, root=2)  # root at p = 0.1
     assert order[0] == 2 and parent[2] == -1
     assert sorted(order) == list(range(5))
     rank = np.argsort(np.argsort(p))  # position of each point along the axis
@@ -189,7 +189,7 @@ def test_continuation_order_walks_outwards_along_the_sorted_points():
 def test_continuation_order_follows_a_nearest_neighbour_tree_in_two_parameters():
     # A 3 x 4 grid with unequal spacing in the two parameters (scaled to [0, 1] each).
     p = np.array([[a, b] for a in (0.0, 5.0, 10.0) for b in (0.0, 0.1, 0.2, 0.3)])
-    order, parent = robust.continuation_order(p, root=11)
+    order, parent = initial.continuation_order(p, root=11)
     assert order[0] == 11 and sorted(order) == list(range(12))
     s = (p - p.min(axis=0)) / np.ptp(p, axis=0)
     seen = {11}
@@ -201,14 +201,16 @@ def test_continuation_order_follows_a_nearest_neighbour_tree_in_two_parameters()
         assert np.isclose(step.max(), 1 / 3) or np.isclose(step.max(), 1 / 2)
         seen.add(q)
     with pytest.raises(ValueError, match=r"^root: expected a point index in 0\.\.11, got 12"):
-        robust.continuation_order(p, root=12)
+        initial.continuation_order(p, root=12)
 
 
 def test_best_determined_point_has_the_most_certain_poles(hard):
     data, _ = hard
     local = lpvid.identify_lti(data, 6)
-    root = robust.best_determined(local, data)
-    worst = [np.max(robust.pole_uncertainty(local[q], data.subset([q]))) for q in range(len(local))]
+    root = initial.best_determined(local, data)
+    worst = [
+        np.max(initial.pole_uncertainty(local[q], data.subset([q]))) for q in range(len(local))
+    ]
     # At s = 0 the modes are the least damped: that end is the best determined.
     assert root == int(np.argmin(worst)) == 0
 
@@ -223,12 +225,12 @@ def test_identify_lti_continuation_keeps_the_local_models_on_one_branch(hard):
     assert not auto.consistency.ok
     assert any(s.startswith("continuation from") for s in auto.starts)
     # ... the continued models are consistent and each fits its point at the noise floor.
-    assert robust.consistency(auto).ok
+    assert initial.consistency(auto).ok
     assert np.all(auto.vnls / auto.noise_floor < 1.1)
     assert np.all(auto.vnls <= plain.vnls + np.sqrt(auto.noise_floor) + 1e-9)
     # The walk starts at the best-determined point and goes outwards.
     root = auto.starts.index("plain")
-    assert root == robust.best_determined(plain, data)
+    assert root == initial.best_determined(plain, data)
     for q, s in enumerate(auto.starts):
         if s.startswith("continuation from"):
             assert abs(int(s.rsplit(" ", 1)[1]) - q) == 1
@@ -257,7 +259,7 @@ def test_global_start_frees_the_groups_in_stages(hard):
     data, _ = hard
     basis = lpvid.Polynomial(2, domain=(0.0, 1.0))
     local = lpvid.identify_lti(data, 6)
-    m = robust.global_start(data, 6, basis, local=local, stages="degree")
+    m = initial.global_start(data, 6, basis, local=local, stages="degree")
     hist = m.info["history"]
     assert m.info["method"] == "global_start" and m.info["stages"] == "degree"
     assert [h["free_groups"] for h in hist] == ["constant only", "degree <= 1", "degree <= 2"]
@@ -266,14 +268,14 @@ def test_global_start_frees_the_groups_in_stages(hard):
     assert v[1] <= v[0] and v[2] <= v[1] * (1 + 1e-9)
     assert v[2] < 1.1 * data.n_residuals
     assert np.isclose(lpvid.vnls(m, data), v[2])
-    assert m.info["point"] == robust.best_determined(local, data)
-    one = robust.global_start(data, 6, basis, local=local, stages="all", point=2)
+    assert m.info["point"] == initial.best_determined(local, data)
+    one = initial.global_start(data, 6, basis, local=local, stages="all", point=2)
     assert [h["free_groups"] for h in one.info["history"]] == ["constant only", "degree <= 2"]
     assert one.info["point"] == 2
     with pytest.raises(
         ValueError, match=r"^stages: expected one of \('all', 'degree'\), got 'one'"
     ):
-        robust.global_start(data, 6, basis, local=local, stages="one")
+        initial.global_start(data, 6, basis, local=local, stages="one")
 
 
 def test_global_start_keeps_fixed_parameters():
@@ -283,7 +285,7 @@ def test_global_start_keeps_fixed_parameters():
     G = np.array([lti_frf(three_modes(s), 2j * np.pi * freqs) for s in p])
     data = lpvid.FrfData(p, freqs, G, 1e-3 * np.abs(G) + 1e-9)
     basis = lpvid.Polynomial(1, domain=(0.0, 1.0))
-    m = robust.global_start(data, 6, basis, fixed={"D": True, "B": [1]})
+    m = initial.global_start(data, 6, basis, fixed={"D": True, "B": [1]})
     assert np.all(m.D == 0.0) and np.all(m.B[1] == 0.0)
 
 
@@ -294,14 +296,14 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
     # The plain route, independently: local models, every SMILE form, fit_nls.
     local = lpvid.identify_lti(data, 6)
     plain = {
-        form: lpvid.fit_nls(m0, data)
+        form: lpvid.fit_nls(m0, data, warn=False)  # it stalls: that is the point
         for form, m0 in lpvid.smile_candidates(local, basis=DAMPED_BASIS).items()
     }
     assert plain, "no coherent form could be built"
     assert min(f.vnls for f in plain.values()) > 1.5 * M  # far above the noise floor
     assert min(lpvid.vnls(f.model, val) for f in plain.values()) > 1.5 * Mv
 
-    cands = robust.initial_candidates(data, 6, DAMPED_BASIS, validation=val, local=local)
+    cands = initial.initial_candidates(data, 6, DAMPED_BASIS, validation=val, local=local)
     names = [c.name for c in cands]
     assert {f"smile:{k}" for k in plain} <= set(names)
     assert "global:all" in names and any(n.startswith("continuation+smile:") for n in names)
@@ -315,7 +317,7 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
             assert c.start.info["form"] == c.name.rsplit(":", 1)[1]
         else:  # the last stage of "global:all" starts from the constant model
             assert c.start.group_norms().count() == 0 and c.constant_groups == 0
-    chosen, reason = robust.choose(cands)
+    chosen, reason = initial.choose(cands)
     assert not chosen.name.startswith("smile:")
     assert chosen.vnls < 1.1 * M  # within 10 % of the noise floor
     assert chosen.validation_vnls < 1.3 * Mv  # within 30 % between the points
@@ -323,10 +325,29 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
     # Each robust route reaches it on its own.
     for prefix in ("continuation+smile:", "global:"):
         route = [c for c in cands if c.name.startswith(prefix)]
-        best, _ = robust.choose(route)
+        best, _ = initial.choose(route)
         assert best.vnls < 1.1 * M and best.validation_vnls < 1.3 * Mv, prefix
     # The interpolated plain models go unstable between the points; the chosen one does not.
     assert chosen.stable and not any(c.stable for c in cands if c.name.startswith("smile:"))
+
+
+def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
+    """Successive halving refines fewer starts and picks the start that refining all would."""
+    data, val = hard
+    local = lpvid.identify_lti(data, 6)
+    kw = dict(validation=val, local=local)
+    raced = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    full = initial.initial_candidates(data, 6, DAMPED_BASIS, halving=False, **kw)
+    assert [c.name for c in raced] == [c.name for c in full]
+    assert all(c.refined for c in full)
+    dropped = [c for c in raced if not c.refined]
+    assert dropped and all("dropped from the race" in c.note for c in dropped)
+    steps = sum(len(c.fit.history) for c in raced)
+    assert steps < 0.7 * sum(len(c.fit.history) for c in full)
+    pick, _ = initial.choose(raced)
+    assert pick.refined and pick.name == initial.choose(full)[0].name
+    same = next(c for c in full if c.name == pick.name)
+    assert pick.validation_vnls == pytest.approx(same.validation_vnls, rel=0.02)
 
 
 # ------------------------------------------------------------------ the easy case
@@ -334,15 +355,15 @@ def test_gantry_does_at_least_as_well_as_the_plain_route():
     ds = lpvid.datasets.gantry()
     data, val = ds.identification, ds.validation
     local = lpvid.identify_lti(data, ds.order)
-    assert robust.consistency(local).ok
-    cands = robust.initial_candidates(
+    assert initial.consistency(local).ok
+    cands = initial.initial_candidates(
         data, ds.order, ds.basis, ds.fixed, validation=val, local=local
     )
     plain = [c for c in cands if c.name.startswith("smile:")]
     cont = [c for c in cands if c.name.startswith("continuation+")]
     assert len(plain) == len(cont) >= 4
     best_plain = min(c.validation_vnls for c in plain)
-    chosen, _ = robust.choose(cands)
+    chosen, _ = initial.choose(cands)
     assert chosen.validation_vnls <= 1.02 * best_plain
     assert chosen.vnls < 1.02 * data.n_residuals
     # Continuation changes little when the local models are consistent.
@@ -353,20 +374,20 @@ def test_gantry_does_at_least_as_well_as_the_plain_route():
 # ------------------------------------------------------------------ choose
 def fake(name, v, val=None, groups=0, stable=True, floor=1000):
     m = lpvid.LpvModel(np.zeros((1, 1, 1)), np.ones((1, 1, 1)), np.ones((1, 1, 1)))
-    return robust.Candidate(
+    return initial.Candidate(
         name, m, v, floor, val, None if val is None else 500, 0.0, groups, stable
     )
 
 
 def test_choose_prefers_validation_then_simplicity():
     cands = [fake("a", 990, 700), fake("b", 1200, 520), fake("c", 1000, 525, groups=3)]
-    pick, reason = robust.choose(cands)
+    pick, reason = initial.choose(cands)
     assert pick.name == "c"  # within 2 % of the best validation and simpler
     assert "simplest" in reason
-    pick, _ = robust.choose(cands, tolerance=0.0)
+    pick, _ = initial.choose(cands, tolerance=0.0)
     assert pick.name == "b"
     # A model unstable between the points loses even with the best validation.
-    pick, reason = robust.choose([*cands, fake("wild", 980, 400, stable=False)])
+    pick, reason = initial.choose([*cands, fake("wild", 980, 400, stable=False)])
     assert pick.name == "c" and "stable" in reason
 
 
@@ -377,22 +398,22 @@ def test_choose_without_validation_uses_the_noise_floor_and_stability():
         fake("simple", 1040, groups=2),  # within 2 sqrt(1000) = 63 of the best stable one
         fake("poor", 1500, groups=5),
     ]
-    pick, reason = robust.choose(cands)
+    pick, reason = initial.choose(cands)
     assert pick.name == "simple"
     assert "stable" in reason and "no validation" in reason
-    pick, _ = robust.choose(cands[:1])
+    pick, _ = initial.choose(cands[:1])
     assert pick.name == "unstable"
     with pytest.raises(ValueError, match=r"^candidates: needs at least one candidate"):
-        robust.choose([])
+        initial.choose([])
     with pytest.raises(TypeError, match=r"^candidates\[0\]: expected a Candidate"):
-        robust.choose(["x"])
+        initial.choose(["x"])
 
 
 def test_initial_candidates_rejects_bad_input(hard):
     data, _ = hard
     with pytest.raises(ValueError, match=r"^routes: unknown route 'magic'"):
-        robust.initial_candidates(data, 6, DAMPED_BASIS, routes=("plain", "magic"))
+        initial.initial_candidates(data, 6, DAMPED_BASIS, routes=("plain", "magic"))
     with pytest.raises(TypeError, match=r"^basis: expected an lpvid basis"):
-        robust.initial_candidates(data, 6, "p")
+        initial.initial_candidates(data, 6, "p")
     with pytest.raises(TypeError, match=r"^validation: expected an FrfData"):
-        robust.initial_candidates(data, 6, DAMPED_BASIS, validation=3)
+        initial.initial_candidates(data, 6, DAMPED_BASIS, validation=3)

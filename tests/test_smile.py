@@ -17,8 +17,9 @@ from systems import (
 )
 
 import lpvid
-from lpvid.coherent import CoherenceError, propagation_order
-from lpvid.smile import FORMS
+from lpvid.initial.coherent import CoherenceError
+from lpvid.initial.smile import FORMS
+from lpvid.schedule import propagation_order
 from lpvid.testing import random_lpv
 
 GANTRY_BASIS = lpvid.Polynomial(4, domain=(24.0, 48.0))
@@ -307,7 +308,7 @@ def test_bad_input_names_the_argument(rng):
         ValueError, match=r"^p: scheduling values must be distinct \(duplicate point \[30\.0\]\)"
     ):
         lpvid.smile(locs, [24.0, 30.0, 30.0, 42.0, 48.0], basis)
-    with pytest.raises(ValueError, match=r"^p: 4 scheduling values for 5 local models"):
+    with pytest.raises(ValueError, match=r"^p: 4 scheduling values for 5 models"):
         lpvid.smile(locs, GANTRY_P[:4], basis)
     with pytest.raises(ValueError, match=r"^p: 4 points cannot determine the 5 coefficients"):
         lpvid.smile(locs[:4], GANTRY_P[:4], basis)
@@ -322,7 +323,7 @@ def test_bad_input_names_the_argument(rng):
     with pytest.raises(TypeError, match=r"^basis: expected an lpvid basis, got NoneType"):
         lpvid.smile(locs, GANTRY_P, None)
     with pytest.raises(
-        TypeError, match=r"^local_models: expected LocalModels or a list of LpvModel, got LpvModel"
+        TypeError, match=r"^local_models: expected LocalModels or a list of LTI LpvModel, got"
     ):
         lpvid.smile(locs[0], GANTRY_P, basis)
     with pytest.raises(TypeError, match=r"^local_models\[1\]: expected an LpvModel, got str"):

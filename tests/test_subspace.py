@@ -6,7 +6,7 @@ from scipy.linalg import block_diag, expm
 from systems import close_modes, gantry_like, lti_frf, modal_system, rel_err
 
 import lpvid
-from lpvid.subspace import bilinear_to_continuous, fd_subspace, max_order, reflect_unstable
+from lpvid.initial.subspace import bilinear_to_continuous, fd_subspace, max_order, reflect_unstable
 from lpvid.testing import random_lpv
 
 

@@ -6,34 +6,43 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, plots, report, robust
-from lpvid._core import SingularModelError
+from lpvid import datasets, initial, plots, readers, report
+from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
+from lpvid.errors import ConvergenceWarning, SingularModelError
 from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
+from lpvid.initial import (
+    Consistency,
+    LocalModels,
+    consistency,
+    fd_subspace,
+    global_start,
+    identify_lti,
+    initial_candidates,
+    smile_candidates,
+)
+from lpvid.initial.smile import smile
 from lpvid.layout import fixed_mask, free_mask
-from lpvid.local import LocalModels, identify_lti
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
-from lpvid.robust import Consistency, consistency, global_start, initial_candidates
-from lpvid.smile import smile, smile_candidates
-from lpvid.subspace import fd_subspace
-
-__version__ = "0.1.0"
+from lpvid.settings import L21Settings
 
 __all__ = [
     "Basis",
     "Consistency",
+    "ConvergenceWarning",
     "CustomBasis",
     "FitResult",
     "FrfData",
     "GroupNorms",
     "IdentifyResult",
     "L21Result",
+    "L21Settings",
     "Legendre",
     "LocalModels",
     "LpvModel",
@@ -41,23 +50,25 @@ __all__ = [
     "PathResult",
     "Polynomial",
     "SingularModelError",
-    "datasets",
-    "report",
-    "robust",
+    "__version__",
     "consistency",
-    "global_start",
-    "initial_candidates",
+    "datasets",
     "estimate_frf",
     "fd_subspace",
     "fit_l21",
     "fit_nls",
     "fixed_mask",
-    "identify",
     "free_mask",
+    "global_start",
+    "identify",
     "identify_lti",
+    "initial",
+    "initial_candidates",
     "l21_path",
     "multisine",
     "plots",
+    "readers",
+    "report",
     "residual",
     "smile",
     "smile_candidates",

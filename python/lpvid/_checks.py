@@ -85,3 +85,14 @@ def sample_time(Ts: Any) -> float | None:
     if Ts is None:
         return None
     return positive_float(Ts, "Ts")
+
+
+def same_sample_time(a: float | None, b: float | None) -> bool:
+    """Whether two sample times describe the same time domain.
+
+    Both None (continuous time), or both numbers equal to 1e-12 relative
+    (sample times read back from files may differ in the last bits).
+    """
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.isclose(a, b, rtol=1e-12, atol=0.0))

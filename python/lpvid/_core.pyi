@@ -1,10 +1,30 @@
-"""Type stub of the compiled core (private)."""
+"""Type stub of the compiled core (private).
+
+Checked against the compiled module by ``python -m mypy.stubtest lpvid._core``
+(CI runs it).
+"""
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 from numpy.typing import NDArray
+from typing_extensions import Self
+
+__all__ = [
+    "__version__",
+    "SingularModelError",
+    "frequency_response",
+    "Problem",
+    "cone_step",
+    "fit_nls",
+    "fit_l21",
+    "l21_defaults",
+    "l21_path",
+    "simulate",
+]
+
+__version__: str
 
 class SingularModelError(ArithmeticError): ...
 
@@ -29,11 +49,12 @@ def simulate(
     x0: NDArray[np.float64],
     dt: float | None = None,
     states: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]: ...
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int | None]: ...
 
+@final
 class Problem:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         n: int,
         r: int,
         l: int,
@@ -43,7 +64,7 @@ class Problem:
         g: NDArray[np.complex128],
         sigma: NDArray[np.float64],
         basis: NDArray[np.float64],
-    ) -> None: ...
+    ) -> Self: ...
     @property
     def n_residuals(self) -> int: ...
     def residual(self, theta: NDArray[np.float64]) -> NDArray[np.complex128]: ...
@@ -52,23 +73,23 @@ class Problem:
         self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
 
-Settings = dict[str, float | int | str]
-Callback = Callable[[dict[str, Any]], Any] | None
+_Settings = dict[str, float | int | str]
+_Callback = Callable[[dict[str, Any]], Any] | None
 
 def fit_nls(
     problem: Problem,
     theta: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
 ) -> dict[str, Any]: ...
 def fit_l21(
     problem: Problem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
 ) -> dict[str, Any]: ...
 def l21_path(
     problem: Problem,
@@ -76,14 +97,15 @@ def l21_path(
     sup_norms: NDArray[np.float64],
     gammas: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
 ) -> list[tuple[float, dict[str, Any]]]: ...
+def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
     problem: Problem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
+    settings: _Settings,
     mu: float,
 ) -> dict[str, Any]: ...

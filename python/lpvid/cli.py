@@ -7,11 +7,10 @@ import math
 import os
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
-
-import numpy as np
 
 import lpvid
 
@@ -25,6 +24,10 @@ The data file holds FRFs measured at frozen scheduling values:
   G (N, F, l, r) complex FRFs (outputs x inputs), optionally sigma (same shape,
   standard deviations; default 1) and Ts (sample time; absent or empty for
   continuous time). lpvid.FrfData.save writes such files.
+  Or a TOML manifest (.toml) listing the measured files per scheduling value:
+  UFF 58 (ASCII or binary), CSV or MATLAB frd/idfrd structs, with sigma from
+  coherence, variance records or a relative level (see lpvid.FrfData.from_files
+  and the README); --lines common keeps the lines all files share.
 
 The pipeline: one LTI model per point (frequency-domain subspace + Levenberg-
 Marquardt), SMILE interpolation over the basis in every coherent form, an
@@ -39,6 +42,7 @@ matters a lot.
 
 example:
   lpvid fit gantry.npz --order 6 --basis poly:4 --validation gantry-val.npz --out fit1
+  lpvid fit gantry.toml --order 6 --basis poly:4 --out fit2
 """
 
 
@@ -107,7 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=FIT_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    fit.add_argument("data", help="FRF data file (.npz or .mat)")
+    fit.add_argument(
+        "data", help="FRF data file (.npz or .mat) or manifest of measured files (.toml)"
+    )
     fit.add_argument("--order", type=int, required=True, help="number of states n")
     fit.add_argument(
         "--basis",
@@ -141,6 +147,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         help="with --validation: relative slack on the best validation error for the choice "
         "(default 0.1)",
+    )
+    fit.add_argument(
+        "--lines",
+        choices=("same", "common"),
+        help="with a manifest: files must share their frequency lines (same, default) or "
+        "only the lines all files have are kept (common)",
     )
     fit.add_argument("--out", required=True, help="output folder")
     fit.add_argument("--no-figures", action="store_true", help="skip the figures")
@@ -233,13 +245,13 @@ def _basis(
             f"--basis: {spec} has {n_functions} basis functions; they need at least "
             f"{n_functions + 1} scheduling points, the data have {data.n_points}"
         )
-    lo, hi = (np.atleast_1d(x) for x in data.p_range)
     if domain is None:
-        if np.any(hi <= lo):
+        pairs = [data.p_range] if data.n_params == 1 else data.p_range
+        if any(hi <= lo for lo, hi in pairs):
             raise _Misuse(
                 "--domain: the data's scheduling values do not span a range; give --domain LO HI"
             )
-        domain = list(zip(lo.tolist(), hi.tolist(), strict=True))
+        domain = data.p_range
     else:
         if data.n_params != 1:
             raise _Misuse(
@@ -254,8 +266,7 @@ def _basis(
                     f"--domain: [{domain[0]:g}, {domain[1]:g}] does not contain the scheduling "
                     f"values of {name} ({frf.p.min():g} to {frf.p.max():g})"
                 )
-        domain = [tuple(domain)]
-    domain = domain[0] if data.n_params == 1 else domain
+        domain = (domain[0], domain[1])
     try:
         if kind == "poly":
             return lpvid.Polynomial(degree, domain=domain)
@@ -264,12 +275,14 @@ def _basis(
         raise _misuse(exc) from exc
 
 
-def _load(path: str, what: str) -> lpvid.FrfData:
+def _load(path: str, what: str, lines: str = "same") -> lpvid.FrfData:
     if not Path(path).exists():
         raise _Misuse(f"{what}: no such file: {path}")
     if not Path(path).is_file():
         raise _Misuse(f"{what}: not a file: {path}")
     try:
+        if Path(path).suffix.lower() == ".toml":
+            return lpvid.FrfData.from_files(path, lines=lines)
         return lpvid.FrfData.load(path)
     except (ValueError, TypeError, OSError) as exc:
         raise _Misuse(f"{what}: {str(exc).removeprefix('path: ')}") from exc
@@ -300,6 +313,17 @@ def _fixed(names: list[str]) -> dict[str, bool] | None:
     return {x: True for x in names} or None
 
 
+def _labels(data: lpvid.FrfData) -> dict[str, Any]:
+    """Report labels from a manifest's names (none for .npz/.mat data)."""
+    prov = data.provenance or {}
+    params = prov.get("parameters")
+    return {
+        "inputs": prov.get("inputs"),
+        "outputs": prov.get("outputs"),
+        "p_label": ", ".join(params) if params else None,
+    }
+
+
 def _fit(args: argparse.Namespace) -> int:
     say = _printer(args.quiet)
     _out_dir(args.out)
@@ -310,8 +334,12 @@ def _fit(args: argparse.Namespace) -> int:
         raise _Misuse(
             "--tolerance: applies to the choice by validation error; give --validation too"
         )
-    data = _load(args.data, "data")
-    validation = _load(args.validation, "--validation") if args.validation else None
+    manifests = [f for f in (args.data, args.validation) if f and f.lower().endswith(".toml")]
+    if args.lines is not None and not manifests:
+        raise _Misuse("--lines: applies to a manifest (.toml) of measured files only")
+    lines = args.lines or "same"
+    data = _load(args.data, "data", lines)
+    validation = _load(args.validation, "--validation", lines) if args.validation else None
     basis = _basis(args.basis, args.domain, data, validation)
     say(f"data: {data}")
 
@@ -330,7 +358,9 @@ def _fit(args: argparse.Namespace) -> int:
         except (ValueError, TypeError) as exc:
             raise _misuse(exc) from exc
 
-    return _run(go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None)
+    return _run(
+        go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None, **_labels(data)
+    )
 
 
 def _one_line(exc: Exception) -> str:
@@ -344,8 +374,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
+
+    def say_warning(message: Any, category: Any, *rest: Any, **kw: Any) -> None:
+        print(f"lpvid {args.command}: warning: {message}", file=sys.stderr, flush=True)
+
     try:
-        return _demo(args) if args.command == "demo" else _fit(args)
+        # The command line shows lpvid's warnings as its own lines, whatever
+        # the interpreter's warning filters (they are part of the results).
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", lpvid.ConvergenceWarning)
+            warnings.showwarning = say_warning
+            return _demo(args) if args.command == "demo" else _fit(args)
     except _Misuse as exc:
         print(f"lpvid {args.command}: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_MISUSE

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import os
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -12,8 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid._checks import complex_array, real_array, sample_time
-from lpvid._files import write_atomic
+from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
+from lpvid._files import mat_variables, npz_arrays, write_atomic
+from lpvid.readers import read_experiment
+from lpvid.schedule import scheduling_range
 
 __all__ = ["FrfData", "z_points"]
 
@@ -139,6 +140,8 @@ class FrfData:
         self.sigma: NDArray[np.float64] = s
         for arr in (self.p, self.freqs_hz, self.G, self.sigma):
             arr.setflags(write=False)
+        #: Where the data came from (set by :meth:`from_files`), else None.
+        self.provenance: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -177,11 +180,12 @@ class FrfData:
         return z_points(self.freqs_hz, self.Ts)
 
     @property
-    def p_range(self) -> tuple[Any, Any]:
-        """Smallest and largest scheduling value (per parameter when Np > 1)."""
-        if self.p.ndim == 1:
-            return float(self.p.min()), float(self.p.max())
-        return tuple(self.p.min(axis=0)), tuple(self.p.max(axis=0))
+    def p_range(self) -> Any:
+        """The scheduling range of the points: ``(lo, hi)``, or ``[(lo, hi), ...]`` per parameter.
+
+        The convention of every scheduling range in lpvid (see :mod:`lpvid.schedule`).
+        """
+        return scheduling_range(self.p)
 
     def subset(self, points: Any) -> FrfData:
         """Return the data of some scheduling points.
@@ -244,7 +248,7 @@ class FrfData:
                 raise TypeError(f"parts[{i}]: expected FrfData, got {type(d).__name__}")
         first = items[0]
         for i, d in enumerate(items[1:], start=1):
-            if d.Ts != first.Ts:
+            if not same_sample_time(d.Ts, first.Ts):
                 raise ValueError(f"parts[{i}]: Ts={d.Ts} differs from Ts={first.Ts} of parts[0]")
             if d.freqs_hz.shape != first.freqs_hz.shape or not np.allclose(
                 d.freqs_hz, first.freqs_hz, rtol=1e-12, atol=0.0
@@ -338,22 +342,9 @@ class FrfData:
         p = Path(path)
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            try:
-                # np.load leaves a file it opened open when it is no zip file
-                with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as f:
-                    raw = {k: f[k] for k in f.files}
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .npz file ({exc})") from exc
+            raw = _read(npz_arrays, p)
         elif suffix == ".mat":
-            from scipy.io import loadmat
-            from scipy.io.matlab import MatReadError
-
-            try:
-                raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
-            except FileNotFoundError:
-                raise
-            except (OSError, ValueError, TypeError, NotImplementedError, MatReadError) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+            raw = _read(mat_variables, p)
         else:
             raise ValueError(f"path: expected a .npz or .mat file, got {p.name!r}")
         missing = [k for k in ("p", "freqs_hz", "G") if k not in raw]
@@ -374,3 +365,128 @@ class FrfData:
         ts_val = None if ts is None or ts.size == 0 else float(ts.ravel()[0])
         sigma = raw.get("sigma")
         return cls(p_val, freqs, G, sigma, ts_val)
+
+    # ---------------------------------------------------------- measured files
+    @classmethod
+    def from_files(cls, manifest: str | os.PathLike[str], *, lines: str = "same") -> FrfData:
+        """Load measured FRFs (UFF 58, CSV, MATLAB frd/idfrd) listed in a TOML manifest.
+
+        The manifest lists, per scheduling value, the file(s) measured there;
+        paths are relative to the manifest's folder. Example::
+
+            Ts = 0.0005               # sample time in s; leave out for continuous time
+            parameters = ["tube side [mm]"]            # optional names of p
+            records = "labels"        # or "output-major" (default), "input-major"
+            sigma = { from = "coherence", averages = 20 }   # for every point
+
+            [[outputs]]               # or outputs = ["head", "carriage"]
+            name = "head"
+            node = 3                  # UFF response node; dir = "+X" optional
+            unit = "m/s^2"            # checked against the files' units
+            [[outputs]]
+            name = "carriage"
+            node = 2
+            [[inputs]]
+            name = "torque"
+            node = 1
+            unit = "N m"
+
+            [[points]]
+            p = 24.0                  # or p = [24.0, 20.0] for two parameters
+            file = "tube24.uff"       # or files = ["a.uff", "b.uff"]
+            [[points]]
+            p = 30.0
+            file = "tube30.uff"
+            sigma = { from = "relative", level = 0.01 }    # this point only
+
+        Top-level keys: ``outputs`` and ``inputs`` (required: names, or
+        tables with ``name`` and optionally ``label``, ``node``, ``dir``,
+        ``unit``), ``points`` (required: tables with ``p`` and ``file`` or
+        ``files``, optionally ``sigma``, ``format``, ``variable``), ``Ts``,
+        ``parameters``, ``records``, ``sigma``, ``format``, ``variable``,
+        ``description`` (free text). Unknown keys are errors.
+
+        Formats, by suffix (``.uff``, ``.unv``, ``.uf``; ``.csv``; ``.mat``)
+        or ``format = "uff" | "csv" | "mat"``:
+
+        - UFF dataset 58, ASCII or binary (needs ``pip install "lpvid[uff]"``):
+          FRF records (function type 4) and coherence records (type 6);
+          units from the ordinate numerator/denominator unit labels, the
+          frequency unit from the abscissa unit label (Hz when absent).
+        - CSV: ``freq [Hz]``, then per pair ``OUT/IN re [unit]`` and
+          ``OUT/IN im [unit]``, or ``OUT/IN mag [unit]`` (or ``db``) and
+          ``OUT/IN phase [deg]``; optional ``OUT/IN coh`` and ``OUT/IN var``
+          (see :mod:`lpvid.readers.table`).
+        - MATLAB: a struct (``s = struct(sys)`` of an frd/idfrd, or by hand;
+          ``variable`` names it when the file has several) or top-level
+          variables with ``ResponseData`` (l x r x F), ``Frequency``,
+          ``FrequencyUnit`` (default ``'rad/TimeUnit'`` as in MATLAB),
+          ``Ts``, ``OutputName``/``InputName``, ``OutputUnit``/``InputUnit``,
+          ``CovarianceData``, or ``Variance``/``Coherence`` (l x r x F).
+
+        Which record is which pair (``records``): by order, the function
+        records of a point's files in file order are (y1,u1), (y1,u2), ...
+        (``"output-major"``) or (y1,u1), (y2,u1), ... (``"input-major"``),
+        and every one must be an FRF (MATLAB data are placed by position);
+        by ``"labels"``, the UFF node (and direction) when ``node`` is
+        given, else the file's label (UFF entity name, CSV ``OUT/IN``,
+        MATLAB ``OutputName``/``InputName``) equal to ``label`` (default:
+        the name).
+
+        sigma (``sigma = {...}`` at the top for every point, or per point;
+        without it sigma is 1): ``{ from = "coherence", averages = n }``
+        uses the coherence records, ``sigma^2 = |G|^2 (1 - gamma^2) / (n
+        gamma^2)`` per line, twice Bendat and Piersol's variance of the
+        magnitude since lpvid's sigma is that of the complex estimate
+        (:func:`lpvid.readers.sigma_from_coherence`); ``{ from = "variance" }``
+        uses variance records ``E|dG|^2`` (CSV ``var``, MATLAB
+        ``CovarianceData`` or ``Variance``); ``{ from = "relative", level =
+        0.01 }`` gives ``sigma = level |G|``.
+
+        Units: where the files state them, the units of a pair must agree
+        across points and, when the manifest gives ``unit`` for the output
+        and the input, equal ``"output unit/input unit"``. ``Ts``: a MATLAB
+        file's ``Ts`` must agree with the manifest's (and fills it in when
+        the manifest has none).
+
+        Parameters
+        ----------
+        manifest : str or path-like
+            The TOML manifest.
+        lines : {"same", "common"}
+            ``"same"`` (default): every record must have the same frequency
+            lines (to 1e-5 relative, the precision of UFF's abscissa), else
+            a ValueError names the point that differs; ``"common"``: keep
+            the lines every record has, with a warning that says how many
+            each point lost.
+
+        Returns
+        -------
+        FrfData
+            With :attr:`provenance`: the manifest, per point the files,
+            records and sigma source, the lines kept and dropped, and the
+            names of the outputs, inputs and scheduling parameters.
+
+        Raises
+        ------
+        ValueError
+            Naming the manifest, file and record: a missing file or record,
+            a record of the wrong type (an auto spectrum where an FRF is
+            expected), NaN lines, inconsistent units, frequency lines that
+            differ, a bad manifest key. TypeError when ``manifest`` is no path.
+
+        """
+        exp = read_experiment(manifest, lines=lines)
+        try:
+            data = cls(exp.p, exp.freqs_hz, exp.G, exp.sigma, exp.Ts)
+        except (ValueError, TypeError) as exc:
+            raise type(exc)(f"{Path(manifest).name}: {exc}") from exc
+        data.provenance = exp.provenance
+        return data
+
+
+def _read(reader: Any, path: Path) -> dict[str, Any]:
+    try:
+        return reader(path)
+    except ValueError as exc:
+        raise ValueError(f"path: {exc}") from exc

@@ -6,8 +6,10 @@ build the compiled problem and wrap the results.
 
 from __future__ import annotations
 
+import logging
+import warnings
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -15,21 +17,92 @@ from lpvid import _core
 from lpvid._checks import positive_float, positive_int, real_array
 from lpvid.cost import build_problem
 from lpvid.data import FrfData
+from lpvid.errors import ConvergenceWarning, logger
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
+from lpvid.settings import L21Settings
 
-__all__ = ["fit_nls", "fit_l21", "l21_path"]
+__all__ = ["fit_nls", "fit_l21", "l21_path", "raise_if_interrupted"]
 
 Callback = Callable[[dict[str, Any]], Any]
+R = TypeVar("R", FitResult, L21Result)
 
-WEIGHTS = ("relative", "scaled", "plain")
+#: The stop code of a fit that Ctrl-C (SIGINT) stopped.
+KEYBOARD_INTERRUPT = "keyboard_interrupt"
 
 
-def _callback(callback: Callback | None) -> Callback | None:
+def _monitor(callback: Callback | None) -> Callback | None:
+    """The user's callback, with every step logged at DEBUG on the ``lpvid`` logger."""
     if callback is not None and not callable(callback):
         raise TypeError(f"callback: expected a callable, got {type(callback).__name__}")
-    return callback
+    if not logger.isEnabledFor(logging.DEBUG):
+        return callback
+
+    def logged(row: dict[str, Any]) -> Any:
+        logger.debug(
+            "%s step: V_NLS %.6g, objective %.6g, step %.3g, lambda %.3g, %s, %s",
+            row["kind"],
+            row["vnls"],
+            row["objective"],
+            row["step_norm"],
+            row["lambda"],
+            "accepted" if row["accepted"] else "rejected",
+            row["status"],
+        )
+        return None if callback is None else callback(row)
+
+    return logged
+
+
+def raise_if_interrupted(result: R) -> R:
+    """Raise KeyboardInterrupt when Ctrl-C stopped ``result``'s fit; else return it.
+
+    The fitting functions return the best model so far when Ctrl-C stops
+    them (``result.interrupted``). A routine that runs several fits (such as
+    :func:`lpvid.identify`) calls this after each, so that Ctrl-C stops the
+    whole run rather than one of its fits.
+    """
+    if result.stop == KEYBOARD_INTERRUPT:
+        raise KeyboardInterrupt(result.message)
+    return result
+
+
+def _still_falling(history: list[dict[str, Any]], tol: float) -> float | None:
+    """Relative fall of the objective over the last three accepted steps, when above ``tol``."""
+    objectives = [row["objective"] for row in history if row["accepted"]]
+    if len(objectives) < 2:
+        return None
+    before, now = objectives[max(len(objectives) - 4, 0)], objectives[-1]
+    fall = (before - now) / max(abs(before), 1e-300)
+    return fall if fall > tol else None
+
+
+#: A fit that stops at its iteration limit counts as still improving when its
+#: objective fell by more than this fraction over its last three accepted steps
+#: (slower falls are the slide along flat directions, worth nothing at the data).
+FALLING = 1e-4
+
+
+def warn_if_unconverged(result: FitResult, what: str, stacklevel: int = 3) -> bool:
+    """Warn (:class:`lpvid.ConvergenceWarning`) when a fit hit its limit while still improving.
+
+    Still improving: the objective fell by more than :data:`FALLING` (relative)
+    over the last three accepted steps. Returns whether it warned.
+    """
+    if result.stop != "max_iterations":
+        return False
+    fall = _still_falling(result.history, FALLING)
+    if fall is None:
+        return False
+    warnings.warn(
+        f"{what} stopped at its iteration limit ({result.n_iter} steps) with the objective "
+        f"still falling ({fall:.2g} relative over its last steps); the model may be short of "
+        "the optimum: raise the iteration limits",
+        ConvergenceWarning,
+        stacklevel=stacklevel,
+    )
+    return True
 
 
 def fit_nls(
@@ -43,13 +116,15 @@ def fit_nls(
     gtol: float = 0.0,
     lambda0: float = 1e-2,
     callback: Callback | None = None,
+    warn: bool = True,
 ) -> FitResult:
     """Minimise V_NLS by Levenberg-Marquardt (method.md (11)).
 
     Each step solves ``(J^T J + lambda^2 diag(J^T J)) d = -J^T r``. The damping
     follows the gain ratio (actual over predicted decrease, Nielsen's rule),
     so few steps are wasted. The run releases the GIL; Ctrl-C stops it and
-    returns the best model so far (``result.interrupted`` is then True).
+    returns the best model so far (``result.interrupted`` is then True and
+    ``result.stop`` is ``"keyboard_interrupt"``).
 
     Parameters
     ----------
@@ -73,10 +148,18 @@ def fit_nls(
     callback : callable, optional
         Called after every step with a dict (see :attr:`FitResult.history`);
         returning ``False`` stops the fit.
+    warn : bool
+        Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at
+        ``max_iter`` with V_NLS still falling (default True).
 
     Returns
     -------
     FitResult
+
+    Raises
+    ------
+    ValueError
+        On bad arguments, or when V_NLS is not finite at the start.
     """
     settings = dict(
         max_iter=positive_int(max_iter, "max_iter"),
@@ -86,47 +169,19 @@ def fit_nls(
         lambda0=positive_float(lambda0, "lambda0"),
     )
     problem = build_problem(model, data)
-    raw = _core.fit_nls(
-        problem, model.theta, free_mask(model, fixed), settings, _callback(callback)
-    )
-    return FitResult._from_core(raw, model, data.n_residuals)
+    raw = _core.fit_nls(problem, model.theta, free_mask(model, fixed), settings, _monitor(callback))
+    result = FitResult._from_core(raw, model, data.n_residuals)
+    if warn:
+        warn_if_unconverged(result, "fit_nls")
+    return result
 
 
-def _l21_settings(
-    model: LpvModel,
-    data: FrfData,
-    p_range: Any,
-    *,
-    eps: float,
-    weights: str,
-    dtheta_min: float,
-    dphi_min: float,
-    dvnls_min: float,
-    threshold: float,
-    ftol: float,
-    max_outer: int,
-    max_inner: int,
-    lambda0: float,
-) -> tuple[dict[str, Any], Any, np.ndarray]:
-    """Checked settings for the core, the scheduling range and ``||psi_i||_inf`` on it."""
-    if weights not in WEIGHTS:
-        raise ValueError(f"weights: expected one of {WEIGHTS}, got {weights!r}")
+def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any, np.ndarray]:
+    """The scheduling range for ``||psi_i||_inf`` (given, the model's, else the data's)."""
     rng = p_range if p_range is not None else model.p_range
     if rng is None:
-        rng = data.p_range if data.n_params == 1 else list(zip(*data.p_range, strict=True))
-    settings = dict(
-        eps=positive_float(eps, "eps"),
-        weights=weights,
-        dtheta_min=positive_float(dtheta_min, "dtheta_min", allow_zero=True),
-        dphi_min=positive_float(dphi_min, "dphi_min", allow_zero=True),
-        dvnls_min=positive_float(dvnls_min, "dvnls_min", allow_zero=True),
-        threshold=positive_float(threshold, "threshold"),
-        ftol=positive_float(ftol, "ftol", allow_zero=True),
-        max_outer=positive_int(max_outer, "max_outer"),
-        max_inner=positive_int(max_inner, "max_inner"),
-        lambda0=positive_float(lambda0, "lambda0"),
-    )
-    return settings, rng, model.basis.sup_norms(rng)
+        rng = data.p_range
+    return rng, model.basis.sup_norms(rng)
 
 
 def _l21_result(
@@ -154,20 +209,13 @@ def fit_l21(
     model: LpvModel,
     data: FrfData,
     gamma: float,
-    eps: float = 1e-3,
-    weights: str = "relative",
+    settings: L21Settings | None = None,
     fixed: Any = None,
-    dtheta_min: float = 1e-6,
-    dphi_min: float = 1e-3,
     *,
-    dvnls_min: float = 1e-3,
-    ftol: float = 1e-6,
-    max_outer: int = 20,
-    max_inner: int = 10,
-    lambda0: float = 1e-2,
     p_range: Any = None,
-    threshold: float = 1e-6,
     callback: Callback | None = None,
+    warn: bool = True,
+    **options: Any,
 ) -> L21Result:
     """Reweighted l2,1-regularised fit: Algorithm 1 of the paper (method.md section 4).
 
@@ -200,91 +248,65 @@ def fit_l21(
         The measurements.
     gamma : float
         Regularisation weight, >= 0. ``gamma = 0`` is plain Levenberg-Marquardt.
-    eps : float
-        ``eps`` of the weights (21)-(23).
-    weights : {"relative", "scaled", "plain"}
-        Reweighting rule: (23) with the scale (25) (groups whose X(0) is zero
-        or fixed fall back to (22)), (22), or (21).
+    settings : L21Settings, optional
+        How Algorithm 1 runs (weights rule, ``eps``, tolerances, iteration
+        limits); default :class:`lpvid.L21Settings`.
     fixed : optional
         Parameters kept at their starting value, as in :func:`lpvid.fixed_mask`.
-    dtheta_min : float
-        Inner loop ends when ``||d|| <= dtheta_min (||theta|| + dtheta_min)``.
-    dphi_min : float
-        Outer loop ends when the largest relative change of the weights is
-        at most ``dphi_min``.
-    dvnls_min : float
-        Outer loop ends when the groups in use are unchanged and V_NLS
-        changed by at most this fraction over the last reweighting.
-    ftol : float
-        Inner loop also ends when a step lowers the objective by less than
-        ``ftol`` times its value.
-    max_outer, max_inner : int
-        Iteration limits of the two loops.
-    lambda0 : float
-        Initial damping (reset at every reweighting).
     p_range : optional
         Scheduling range for ``||psi_i||_inf``; default the model's, else the data's.
-    threshold : float
-        Relative magnitude (23) below which a group counts as removed.
     callback : callable, optional
         Called after every cone step with a dict; returning ``False`` stops.
+        Ctrl-C stops the fit and returns the best model so far
+        (``result.stop == "keyboard_interrupt"``).
+    warn : bool
+        Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at its
+        iteration limit with the objective still falling (default True).
+    **options
+        Fields of :class:`lpvid.L21Settings` to change, e.g. ``eps=1e-4``,
+        ``weights="scaled"``, ``max_outer=5``.
 
     Returns
     -------
     L21Result
+
+    Raises
+    ------
+    ValueError, TypeError
+        On bad arguments (an unknown option names itself), or when V_NLS is
+        not finite at the start.
     """
     g = positive_float(gamma, "gamma", allow_zero=True)
-    settings, rng, sup = _l21_settings(
-        model,
-        data,
-        p_range,
-        eps=eps,
-        weights=weights,
-        dtheta_min=dtheta_min,
-        dphi_min=dphi_min,
-        dvnls_min=dvnls_min,
-        threshold=threshold,
-        ftol=ftol,
-        max_outer=max_outer,
-        max_inner=max_inner,
-        lambda0=lambda0,
-    )
+    s = L21Settings.of(settings, **options)
+    rng, sup = _p_range_and_sup(model, data, p_range)
     problem = build_problem(model, data)
     raw = _core.fit_l21(
-        problem,
-        model.theta,
-        sup,
-        free_mask(model, fixed),
-        {**settings, "gamma": g},
-        _callback(callback),
+        problem, model.theta, sup, free_mask(model, fixed), s.to_core(g), _monitor(callback)
     )
-    return _l21_result(raw, model, data, g, rng, settings["threshold"])
+    result = _l21_result(raw, model, data, g, rng, s.threshold)
+    if warn:
+        warn_if_unconverged(result, f"fit_l21 (gamma = {g:g})")
+    return result
 
 
 def l21_path(
     model: LpvModel,
     data: FrfData,
     gammas: Sequence[float],
-    eps: float = 1e-3,
-    weights: str = "relative",
+    settings: L21Settings | None = None,
     fixed: Any = None,
-    dtheta_min: float = 1e-6,
-    dphi_min: float = 1e-3,
     *,
-    dvnls_min: float = 1e-3,
-    ftol: float = 1e-6,
-    max_outer: int = 20,
-    max_inner: int = 10,
-    lambda0: float = 1e-2,
     p_range: Any = None,
-    threshold: float = 1e-6,
     callback: Callback | None = None,
+    warn: bool = True,
+    **options: Any,
 ) -> PathResult:
     """A warm-started sweep of :func:`fit_l21` from the largest gamma to the smallest.
 
     Each fit starts from the previous result, as in section 5.3 of the
     paper; the weights are recomputed at each start. Arguments as in
-    :func:`fit_l21`.
+    :func:`fit_l21`; Ctrl-C stops the sweep and returns the fits so far
+    (the last one interrupted).
 
     Returns
     -------
@@ -294,24 +316,14 @@ def l21_path(
     gs = real_array(gammas, "gammas", ndim=1)
     if gs.size == 0 or np.any(gs < 0):
         raise ValueError("gammas: needs at least one value, all >= 0")
-    settings, rng, sup = _l21_settings(
-        model,
-        data,
-        p_range,
-        eps=eps,
-        weights=weights,
-        dtheta_min=dtheta_min,
-        dphi_min=dphi_min,
-        dvnls_min=dvnls_min,
-        threshold=threshold,
-        ftol=ftol,
-        max_outer=max_outer,
-        max_inner=max_inner,
-        lambda0=lambda0,
-    )
+    s = L21Settings.of(settings, **options)
+    rng, sup = _p_range_and_sup(model, data, p_range)
     problem = build_problem(model, data)
     raws = _core.l21_path(
-        problem, model.theta, sup, gs, free_mask(model, fixed), settings, _callback(callback)
+        problem, model.theta, sup, gs, free_mask(model, fixed), s.to_core(), _monitor(callback)
     )
-    thr = settings["threshold"]
-    return PathResult([_l21_result(raw, model, data, g, rng, thr) for g, raw in raws])
+    results = [_l21_result(raw, model, data, g, rng, s.threshold) for g, raw in raws]
+    if warn:
+        for r in results:
+            warn_if_unconverged(r, f"l21_path (gamma = {r.gamma:g})")
+    return PathResult(results)

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from lpvid.model import LpvModel
 
-__all__ = ["MATRICES", "fixed_mask", "free_mask"]
+__all__ = ["MATRICES", "fixed_mask", "free_mask", "strictly_proper"]
 
 #: The four state-space matrices, in the order of theta.
 MATRICES = ("A", "B", "C", "D")
@@ -97,3 +97,8 @@ def fixed_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
 def free_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
     """The complement of :func:`fixed_mask`: True where a parameter is free."""
     return ~fixed_mask(model, fixed)
+
+
+def strictly_proper(fixed: Any) -> bool:
+    """Whether ``fixed`` keeps all of D (``{"D": True}``): local models are then strictly proper."""
+    return isinstance(fixed, dict) and fixed.get("D") is True

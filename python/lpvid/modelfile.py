@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
-from lpvid._files import write_atomic
+from lpvid._files import mat_variables, write_atomic
 from lpvid.basis import basis_from_dict
 
 if TYPE_CHECKING:
@@ -200,15 +200,10 @@ def _parse(data: bytes, name: str) -> dict[str, Any]:
 
 def _read_mat(p: Path) -> dict[str, Any]:
     """The ``content`` held by the MATLAB variables of ``p``, checked against ``lpvid_model``."""
-    from scipy.io import loadmat
-    from scipy.io.matlab import MatReadError
-
     try:
-        raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
-    except FileNotFoundError:
-        raise
-    except (OSError, ValueError, TypeError, NotImplementedError, MatReadError) as exc:
-        raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+        raw = mat_variables(p)
+    except ValueError as exc:
+        raise ValueError(f"path: {exc}") from exc
     embedded = None
     if "lpvid_model" in raw:
         text = raw["lpvid_model"]

@@ -1,7 +1,7 @@
 """The whole identification pipeline: local models, initial models, NLS, l2,1 path, a choice.
 
 :func:`identify` chains :func:`~lpvid.identify_lti`, the initial models of
-:mod:`lpvid.robust` (SMILE in every coherent form, continuation, global
+:mod:`lpvid.initial` (SMILE in every coherent form, continuation, global
 starts), :func:`~lpvid.fit_nls` and the l2,1 path of :func:`~lpvid.l21_path`,
 then chooses a model on the path and says why.
 """
@@ -9,22 +9,30 @@ then chooses a model on the path and says why.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.cost import vnls
 from lpvid.data import FrfData
-from lpvid.fit import fit_l21
-from lpvid.layout import free_mask
-from lpvid.local import LocalModels, identify_lti
+from lpvid.errors import ConvergenceWarning, logger
+from lpvid.fit import fit_l21, raise_if_interrupted, warn_if_unconverged
+from lpvid.frozen import frozen_stable
+from lpvid.initial.candidates import ROUTES, Candidate, initial_candidates
+from lpvid.initial.choice import choose
+from lpvid.initial.local import identify_lti
+from lpvid.initial.localmodels import LocalModels
+from lpvid.layout import free_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
-from lpvid.robust import ROUTES, Candidate, choose, initial_candidates
+from lpvid.schedule import between_points
+from lpvid.settings import L21Settings
 
 __all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
 
@@ -53,6 +61,11 @@ class PathEntry:
         Basis indices kept per matrix.
     seconds : float
         Time the fit took.
+    converged : bool
+        Whether the fit met a convergence test (False: it stopped at its
+        iteration limit; :attr:`message` says so).
+    message : str
+        Why the fit stopped.
     """
 
     gamma: float
@@ -64,6 +77,8 @@ class PathEntry:
     n_groups: int
     nonzero_groups: dict[str, list[int]]
     seconds: float
+    converged: bool = True
+    message: str = ""
 
 
 @dataclass
@@ -87,7 +102,7 @@ class IdentifyResult:
     start : str
         Name of the chosen start (route and form, e.g. ``"smile:modal"``,
         ``"continuation+smile:observability"``, ``"global:all"``).
-    candidates : list of lpvid.robust.Candidate
+    candidates : list of lpvid.initial.Candidate
         Every initial model tried, refined by fit_nls.
     initial_reason : str
         Why that starting point was chosen.
@@ -139,6 +154,8 @@ class IdentifyResult:
             )
             if val and e.validation_vnls is not None and e.validation_floor:
                 line += f" {e.validation_vnls:11.5g} {e.validation_vnls / e.validation_floor:9.4f}"
+            if not e.converged:
+                line += "  (iteration limit)"
             lines.append(line)
         return "\n".join(lines)
 
@@ -169,6 +186,7 @@ class IdentifyResult:
 
 
 def _say(progress: Progress | None, message: str) -> None:
+    logger.info(message)
     if progress is not None:
         progress(message)
 
@@ -184,9 +202,7 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
 
     if sizes(validation) != sizes(data):
         raise ValueError(f"validation: has {sizes(validation)}; the data have {sizes(data)}")
-    if (validation.Ts is None) != (data.Ts is None) or (
-        data.Ts is not None and not np.isclose(validation.Ts, data.Ts, rtol=1e-12)  # type: ignore[arg-type]
-    ):
+    if not same_sample_time(validation.Ts, data.Ts):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
 
@@ -195,8 +211,8 @@ def _check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
     """Refuse an order whose LPV model has more parameters than the data have residuals.
 
     The free parameters less the ``n^2`` of the state coordinates must not
-    exceed the ``M`` real residuals: beyond that the fit is undetermined
-    (and would take long to find out).
+    exceed the ``2 M`` real equations of the ``M`` complex residuals: beyond
+    that the fit is undetermined (and would take long to find out).
     """
 
     def excess(order: int) -> tuple[int, int]:
@@ -208,7 +224,7 @@ def _check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
             basis=basis,
         )
         free = int(free_mask(layout, fixed).sum())
-        return free, free - order * order - data.n_residuals
+        return free, free - order * order - 2 * data.n_residuals
 
     free, over = excess(n)
     if over > 0:
@@ -220,13 +236,9 @@ def _check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
         raise ValueError(
             f"order: {n} states with {len(basis)} basis functions give {free} free parameters; "
             f"less the {n * n} of the state coordinates that is more than the "
-            f"{data.n_residuals} real residuals of the data (at most order {limit})"
+            f"{2 * data.n_residuals} real equations of the data's {data.n_residuals} complex "
+            f"residuals (at most order {limit})"
         )
-
-
-def _strictly_proper(fixed: Any) -> bool:
-    """Whether ``fixed`` asks to keep all of D (so the local models have D = 0)."""
-    return isinstance(fixed, dict) and fixed.get("D") is True
 
 
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
@@ -273,6 +285,7 @@ def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
     )
 
 
+@single_blas
 def identify(
     data: FrfData,
     order: int,
@@ -284,20 +297,18 @@ def identify(
     forms: Sequence[str] | None = None,
     routes: Sequence[str] = ROUTES,
     tolerance: float = 0.1,
-    eps: float = 1e-3,
-    threshold: float = 1e-6,
-    max_outer: int = 10,
+    settings: L21Settings | None = None,
     progress: Progress | None = None,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
     1. One LTI model per scheduling point (:func:`~lpvid.identify_lti`).
-    2. Initial LPV models by several routes (:func:`lpvid.robust.initial_candidates`):
+    2. Initial LPV models by several routes (:func:`lpvid.initial_candidates`):
        SMILE over ``basis`` in every coherent form from the plain local
        models, the same from local models found by continuation along the
        scheduling axis, and global starts from one well-determined local
        model; each is refined by :func:`~lpvid.fit_nls`. The start is chosen
-       by :func:`lpvid.robust.choose`: among models stable between the
+       by :func:`lpvid.initial.choose`: among models stable between the
        points, the lowest validation V_NLS (identification V_NLS without
        validation data), the simpler on a near tie.
     3. The reweighted l2,1 path over ``gammas`` from the refined start
@@ -325,20 +336,35 @@ def identify(
         Parameters kept fixed (see :func:`~lpvid.fixed_mask`). With
         ``{"D": True}`` the local models are strictly proper and D stays zero.
     forms : sequence of str, optional
-        Coherent forms to try (default all, see :data:`lpvid.smile.FORMS`).
+        Coherent forms to try (default all, see :data:`lpvid.initial.smile.FORMS`).
     routes : sequence of str
         Routes to initial models: ``"plain"``, ``"continuation"``,
         ``"global"`` (default all).
     tolerance : float
         Relative slack on the best validation V_NLS for the choice.
-    eps, threshold, max_outer
-        Passed to :func:`~lpvid.l21_path`.
+    settings : L21Settings, optional
+        Settings of the l2,1 fits on the path; default
+        ``L21Settings(max_outer=10)``.
     progress : callable, optional
-        Called with a short message at every stage and every fit on the path.
+        Called with a short message at every stage and every fit on the
+        path (the same messages go to the ``lpvid`` logger at INFO).
 
     Returns
     -------
     IdentifyResult
+
+    Warns
+    -----
+    ConvergenceWarning
+        When the unregularised fit or a fit on the path stops at its
+        iteration limit with its objective still falling (the entry's
+        ``converged`` is then False), and when the chosen model is unstable
+        between the scheduling points.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        When Ctrl-C stops one of the fits.
     """
     t0 = time.perf_counter()
     if not isinstance(data, FrfData):
@@ -351,6 +377,7 @@ def identify(
     if gs.size == 0 or np.any(gs <= 0):
         raise ValueError("gammas: needs at least one value, all > 0")
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    l21 = L21Settings.of(settings if settings is not None else L21Settings(max_outer=10))
     if data.n_points < len(basis) + 1:
         raise ValueError(
             f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
@@ -365,7 +392,7 @@ def identify(
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
     t = time.perf_counter()
-    local = identify_lti(data, n, strictly_proper=_strictly_proper(fixed))
+    local = identify_lti(data, n, strictly_proper=strictly_proper(fixed))
     timings["local_s"] = time.perf_counter() - t
 
     _say(progress, f"initial models ({', '.join(routes)}), each refined by fit_nls")
@@ -379,9 +406,12 @@ def identify(
     timings["smile_s"] = time.perf_counter() - t
     assert start.fit is not None and start.start is not None
     nls = start.fit
+    warn_if_unconverged(nls, "the unregularised fit (fit_nls)", stacklevel=2)
     for c in sorted(candidates, key=lambda c: (c.validation_vnls or 0.0, c.vnls)):
         val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
-        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{'' if c.stable else ', unstable'}")
+        dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
+        state = ("" if c.stable else ", unstable") + dropped
+        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
     timings["nls_s"] = nls.timings["total_s"]
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
@@ -389,22 +419,29 @@ def identify(
     # The path of l21_path, run here one gamma at a time to report progress.
     results = []
     current = nls.model
-    entries = [_entry(0.0, nls.model, data, validation, threshold, nls.timings["total_s"])]
+    entries = [_entry(0.0, nls, data, validation, l21.threshold)]
     for g in sorted(gs, reverse=True):
-        r = fit_l21(
-            current, data, g, eps=eps, fixed=fixed, threshold=threshold, max_outer=max_outer
-        )
+        r = raise_if_interrupted(fit_l21(current, data, g, l21, fixed, warn=False))
         results.append(r)
         current = r.model
-        entries.append(_entry(r.gamma, r.model, data, validation, threshold, r.timings["total_s"]))
+        entries.append(_entry(r.gamma, r, data, validation, l21.threshold))
+        warn_if_unconverged(r, f"the l2,1 fit at gamma = {r.gamma:g}", stacklevel=2)
         _say(
             progress,
             f"  gamma = {r.gamma:g}: {r.n_groups} groups, V_NLS/floor "
-            f"{r.vnls / r.noise_floor:.3f}, {r.n_iter} cone steps",
+            f"{r.vnls / r.noise_floor:.3f}, {r.n_iter} cone steps"
+            + ("" if r.converged else f" ({r.message})"),
         )
     path = PathResult(results)
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)
+    if not frozen_stable(entries[chosen].model, between_points(data.p)):
+        warnings.warn(
+            "the chosen model has unstable frozen models between the scheduling points "
+            "(checked at 7 values between every two neighbouring points)",
+            ConvergenceWarning,
+            stacklevel=2,
+        )
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(
         model=entries[chosen].model,
@@ -426,12 +463,12 @@ def identify(
 
 def _entry(
     gamma: float,
-    model: LpvModel,
+    fit: FitResult,
     data: FrfData,
     validation: FrfData | None,
     threshold: float,
-    seconds: float,
 ) -> PathEntry:
+    model = fit.model
     norms = model.group_norms()
     return PathEntry(
         gamma=float(gamma),
@@ -442,5 +479,7 @@ def _entry(
         validation_floor=None if validation is None else validation.n_residuals,
         n_groups=norms.count(threshold),
         nonzero_groups=norms.nonzero(threshold),
-        seconds=float(seconds),
+        seconds=float(fit.timings["total_s"]),
+        converged=fit.converged,
+        message=fit.message,
     )

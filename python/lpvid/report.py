@@ -41,6 +41,7 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
                 "vnls": p.vnls,
                 "validation_vnls": p.validation_vnls,
                 "seconds": p.seconds,
+                "converged": p.converged,
             }
             for p in result.entries
         ],

@@ -10,7 +10,9 @@ impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {
             Error::InvalidArgument { .. } => PyValueError::new_err(e.to_string()),
-            Error::Singular { .. } => super::SingularModelError::new_err(e.to_string()),
+            Error::Singular { .. } | Error::Overflow { .. } => {
+                super::SingularModelError::new_err(e.to_string())
+            }
             Error::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
             Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
         }

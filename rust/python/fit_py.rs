@@ -16,16 +16,26 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList};
 
 /// Calls the Python callback with one dict per iteration; stops the fit when
-/// the callback returns `False`, raises, or Ctrl-C arrives.
+/// the callback returns `False`, raises, or Ctrl-C arrives. Ctrl-C is
+/// remembered (`signalled`) so that the result says so: the fit returns its
+/// best model, and a caller running several fits can stop them all.
 struct PyMonitor {
     callback: Option<Py<PyAny>>,
     error: Option<PyErr>,
+    signalled: bool,
 }
 
 impl Monitor for PyMonitor {
     fn iteration(&mut self, it: &Iteration) -> bool {
         Python::attach(|py| {
-            if py.check_signals().is_err() {
+            if let Err(e) = py.check_signals() {
+                // Python's SIGINT handler raised KeyboardInterrupt; any other
+                // handler's exception stops the fit and is raised afterwards.
+                if e.is_instance_of::<PyKeyboardInterrupt>(py) {
+                    self.signalled = true;
+                } else {
+                    self.error = Some(e);
+                }
                 return false;
             }
             let Some(cb) = &self.callback else {
@@ -36,7 +46,10 @@ impl Monitor for PyMonitor {
                 // Only an explicit False stops the fit.
                 Ok(ret) => !ret.is_instance_of::<PyBool>() || ret.is_truthy().unwrap_or(true),
                 // Ctrl-C while the callback ran: stop like Ctrl-C anywhere else.
-                Err(e) if e.is_instance_of::<PyKeyboardInterrupt>(py) => false,
+                Err(e) if e.is_instance_of::<PyKeyboardInterrupt>(py) => {
+                    self.signalled = true;
+                    false
+                }
                 Err(e) => {
                     self.error = Some(e);
                     false
@@ -47,20 +60,22 @@ impl Monitor for PyMonitor {
 }
 
 /// Run a fit with the GIL released and a monitor for the callback; an
-/// exception the callback raised is raised again afterwards.
+/// exception the callback raised is raised again afterwards. Also returns
+/// whether Ctrl-C stopped the run.
 fn with_monitor<T: Send>(
     py: Python<'_>,
     callback: Option<Py<PyAny>>,
     run: impl FnOnce(&mut PyMonitor) -> crate::Result<T> + Send,
-) -> PyResult<T> {
+) -> PyResult<(T, bool)> {
     let mut monitor = PyMonitor {
         callback,
         error: None,
+        signalled: false,
     };
     let out = py.detach(|| run(&mut monitor))?;
     match monitor.error {
         Some(e) => Err(e),
-        None => Ok(out),
+        None => Ok((out, monitor.signalled)),
     }
 }
 
@@ -98,16 +113,29 @@ fn stop_code(stop: Stop) -> &'static str {
     }
 }
 
-fn fit_dict<'py>(py: Python<'py>, fit: Fit) -> PyResult<Bound<'py, PyDict>> {
+/// Stop code and message of the fit for Python; `signalled`: Ctrl-C stopped it.
+fn stop_of(fit: &Fit, signalled: bool) -> (&'static str, &'static str) {
+    if signalled && fit.stop == Stop::Interrupted {
+        (
+            "keyboard_interrupt",
+            "interrupted by Ctrl-C (SIGINT); the best model so far is returned",
+        )
+    } else {
+        (stop_code(fit.stop), fit.stop.message())
+    }
+}
+
+fn fit_dict<'py>(py: Python<'py>, fit: Fit, signalled: bool) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
+    let (code, message) = stop_of(&fit, signalled);
     let rows = PyList::empty(py);
     for it in &fit.history {
         rows.append(iteration_dict(py, it)?)?;
     }
     d.set_item("vnls", fit.vnls)?;
     d.set_item("objective", fit.objective)?;
-    d.set_item("stop", stop_code(fit.stop))?;
-    d.set_item("message", fit.stop.message())?;
+    d.set_item("stop", code)?;
+    d.set_item("message", message)?;
     d.set_item("converged", fit.stop.converged())?;
     d.set_item("interrupted", fit.stop == Stop::Interrupted)?;
     d.set_item("outer_iterations", fit.outer_iterations)?;
@@ -175,26 +203,42 @@ fn lm_settings(d: &Bound<'_, PyDict>) -> PyResult<LmSettings> {
     Ok(s)
 }
 
+fn weighting_name(w: Weighting) -> &'static str {
+    match w {
+        Weighting::Relative => "relative",
+        Weighting::Scaled => "scaled",
+        Weighting::Plain => "plain",
+    }
+}
+
+/// The settings as a dict: the names Python's `L21Settings` mirrors.
+fn l21_dict<'py>(py: Python<'py>, s: &L21Settings) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("gamma", s.gamma)?;
+    d.set_item("eps", s.eps)?;
+    d.set_item("weights", weighting_name(s.weighting))?;
+    d.set_item("dtheta_min", s.dtheta_min)?;
+    d.set_item("dphi_min", s.dphi_min)?;
+    d.set_item("dvnls_min", s.dvnls_min)?;
+    d.set_item("threshold", s.threshold)?;
+    d.set_item("cone_tol", s.cone_tol)?;
+    d.set_item("ftol", s.ftol)?;
+    d.set_item("max_outer", s.max_outer)?;
+    d.set_item("max_inner", s.max_inner)?;
+    d.set_item("lambda0", s.lambda0)?;
+    Ok(d)
+}
+
+/// Read settings from a dict with the keys of [`l21_dict`] (any subset).
 fn l21_settings(d: &Bound<'_, PyDict>) -> PyResult<L21Settings> {
-    check_keys(
-        d,
-        &[
-            "gamma",
-            "eps",
-            "weights",
-            "dtheta_min",
-            "dphi_min",
-            "dvnls_min",
-            "threshold",
-            "cone_tol",
-            "ftol",
-            "max_outer",
-            "max_inner",
-            "lambda0",
-        ],
-    )?;
     let base = L21Settings::default();
-    let name: String = setting(d, "weights", "relative".to_string())?;
+    let known = l21_dict(d.py(), &base)?;
+    for key in d.keys() {
+        if !known.contains(&key)? {
+            return Err(PyValueError::new_err(format!("unknown setting {key}")));
+        }
+    }
+    let name: String = setting(d, "weights", weighting_name(base.weighting).to_string())?;
     let s = L21Settings {
         gamma: setting(d, "gamma", base.gamma)?,
         eps: setting(d, "eps", base.eps)?,
@@ -213,6 +257,13 @@ fn l21_settings(d: &Bound<'_, PyDict>) -> PyResult<L21Settings> {
     Ok(s)
 }
 
+/// The core's default l2,1 settings as a dict (what `lpvid.L21Settings` mirrors).
+#[pyfunction]
+#[pyo3(name = "l21_defaults")]
+fn l21_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    l21_dict(py, &L21Settings::default())
+}
+
 /// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`. Returns a dict.
 #[pyfunction]
 #[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None))]
@@ -227,11 +278,11 @@ fn fit_nls_py<'py>(
     let theta = real_vec(&theta);
     let free = free_set(problem, free)?;
     let settings = lm_settings(settings)?;
-    let fit = with_monitor(py, callback, |monitor| {
+    let (fit, signalled) = with_monitor(py, callback, |monitor| {
         problem.inner.shape().check_theta(&theta)?;
         levenberg_marquardt(&problem.inner, &theta, &free, &settings, monitor)
     })?;
-    fit_dict(py, fit)
+    fit_dict(py, fit, signalled)
 }
 
 /// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`. Returns a dict.
@@ -250,10 +301,10 @@ fn fit_l21_py<'py>(
     let sup = real_vec(&sup_norms);
     let free = free_set(problem, free)?;
     let settings = l21_settings(settings)?;
-    let fit = with_monitor(py, callback, |monitor| {
+    let (fit, signalled) = with_monitor(py, callback, |monitor| {
         fit_l21(&problem.inner, &theta, &free, &sup, &settings, monitor)
     })?;
-    fit_dict(py, fit)
+    fit_dict(py, fit, signalled)
 }
 
 /// Warm-started gamma path; returns a list of (gamma, dict), largest gamma first.
@@ -275,7 +326,7 @@ fn l21_path_py<'py>(
     let gammas = real_vec(&gammas);
     let free = free_set(problem, free)?;
     let settings = l21_settings(settings)?;
-    let fits = with_monitor(py, callback, |monitor| {
+    let (fits, signalled) = with_monitor(py, callback, |monitor| {
         l21_path(
             &problem.inner,
             &theta,
@@ -288,7 +339,7 @@ fn l21_path_py<'py>(
     })?;
     let out = PyList::empty(py);
     for (gamma, fit) in fits {
-        out.append((gamma, fit_dict(py, fit)?))?;
+        out.append((gamma, fit_dict(py, fit, signalled)?))?;
     }
     Ok(out)
 }
@@ -328,6 +379,7 @@ fn cone_step_py<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(cone_step_py, m)?)?;
+    m.add_function(wrap_pyfunction!(l21_defaults_py, m)?)?;
     m.add_function(wrap_pyfunction!(fit_nls_py, m)?)?;
     m.add_function(wrap_pyfunction!(fit_l21_py, m)?)?;
     m.add_function(wrap_pyfunction!(l21_path_py, m)?)?;

@@ -12,13 +12,16 @@ pyo3::create_exception!(
     _core,
     SingularModelError,
     pyo3::exceptions::PyArithmeticError,
-    "zI - A(p) is singular at some scheduling point and frequency."
+    "zI - A(p) is singular, or the frequency response overflowed, at some scheduling point \
+     and frequency."
 );
 
 /// The compiled core of lpvid (private: use the `lpvid` package).
 #[pymodule]
 #[pyo3(name = "_core")]
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The package version, from Cargo.toml (lpvid.__version__).
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add(
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),

@@ -1,7 +1,7 @@
 """SMILE: interpolation of local LTI models in coherent coordinates (method.md 5, 5a).
 
 State-space Model Interpolation of Local Estimates: bring the local models
-to coherent state coordinates (:mod:`lpvid.coherent`), then fit every matrix
+to coherent state coordinates (:mod:`lpvid.initial.coherent`), then fit every matrix
 entry over the basis functions by linear least squares. With N points and
 N - 1 polynomial terms the interpolation is exact, so the LPV model
 reproduces every local model.
@@ -16,10 +16,20 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
-from lpvid.coherent import CoherenceError, balance, krylov_form, modal_form, pairwise_form
 from lpvid.data import z_points
+from lpvid.frozen import lti_frf
+from lpvid.initial.coherent import (
+    CoherenceError,
+    balance,
+    krylov_form,
+    modal_form,
+    pairwise_form,
+)
+from lpvid.initial.localmodels import LocalModels, local_p, lti_models
 from lpvid.model import LpvModel
+from lpvid.schedule import model_range
 
 __all__ = ["FORMS", "smile", "smile_candidates"]
 
@@ -29,45 +39,17 @@ FORMS = ("observability", "controllability", "modal", "modal_input", "pairwise")
 Ss = tuple[NDArray[np.float64], ...]
 
 
-def _local_list(local_models: Any) -> tuple[list[Ss], float | None, Any]:
+def _local_list(local_models: Any) -> tuple[list[Ss], float | None, LocalModels | None]:
     """The models as (A, B, C, D) tuples, their Ts, and the LocalModels (or None)."""
-    from lpvid.local import LocalModels
-
+    models = lti_models(local_models)
     carrier = local_models if isinstance(local_models, LocalModels) else None
-    if isinstance(local_models, LpvModel) or not isinstance(local_models, Sequence):
-        raise TypeError(
-            "local_models: expected LocalModels or a list of LpvModel, "
-            f"got {type(local_models).__name__}"
-        )
-    models = list(local_models)
-    if not models:
-        raise ValueError("local_models: needs at least one model")
-    for k, m in enumerate(models):
-        if not isinstance(m, LpvModel):
-            raise TypeError(f"local_models[{k}]: expected an LpvModel, got {type(m).__name__}")
-        if m.n_basis != 0:
-            raise ValueError(
-                f"local_models[{k}]: expected an LTI model (Nb = 0), got Nb={m.n_basis}"
-            )
-        if m.shape[:3] != models[0].shape[:3]:
-            raise ValueError(
-                f"local_models[{k}]: (n, r, l) = {m.shape[:3]} differs from the first model's "
-                f"{models[0].shape[:3]}"
-            )
-        if (m.Ts is None) != (models[0].Ts is None) or (
-            m.Ts is not None and not np.isclose(m.Ts, models[0].Ts, rtol=1e-12)  # type: ignore[arg-type]
-        ):
-            raise ValueError(f"local_models[{k}]: Ts={m.Ts} differs from the first model's")
     mats = [tuple(x[0].copy() for x in m.matrices().values()) for m in models]
     return mats, models[0].Ts, carrier
 
 
-def _check_p(p: Any, n_models: int, basis: Basis) -> NDArray[np.float64]:
-    """Scheduling values as (N, Np), checked against the models and the basis."""
-    arr = real_array(p, "p", ndim=(1, 2))
-    if arr.shape[0] != n_models:
-        raise ValueError(f"p: {arr.shape[0]} scheduling values for {n_models} local models")
-    rows = arr.reshape(n_models, -1)
+def _check_p(arr: NDArray[np.float64], basis: Basis) -> NDArray[np.float64]:
+    """Scheduling values as (N, Np), checked to be distinct and to fit the basis."""
+    rows = arr.reshape(arr.shape[0], -1)
     _, first, counts = np.unique(rows, axis=0, return_index=True, return_counts=True)
     if np.any(counts > 1):
         dup = rows[first[np.argmax(counts > 1)]]
@@ -117,13 +99,6 @@ def _interpolate(
     return coefs, resid
 
 
-def _lti_frf(m: Ss, z: NDArray[np.complex128]) -> NDArray[np.complex128]:
-    A, B, C, D = m
-    n = A.shape[0]
-    lhs = z[:, None, None] * np.eye(n)[None] - A[None]
-    return C[None] @ np.linalg.solve(lhs, np.broadcast_to(B, (z.size, *B.shape))) + D[None]
-
-
 def _default_freqs(models: list[Ss], Ts: float | None) -> NDArray[np.float64]:
     """A frequency grid covering the local models' poles (for leave-one-out checks)."""
     if Ts is not None:
@@ -171,9 +146,9 @@ def _leave_one_out(
             return None
         coefs, _ = _interpolate(coherent, sub)
         pred = tuple(np.tensordot(phi[q, :cols], c, axes=1) for c in coefs)
-        g_ref = _lti_frf(models[q], z)
+        g_ref = lti_frf(*models[q], z)
         with np.errstate(all="ignore"):
-            g = _lti_frf(pred, z)
+            g = lti_frf(*pred, z)
         err = float(np.linalg.norm(g - g_ref) / np.linalg.norm(g_ref))
         errs.append(err if np.isfinite(err) else np.inf)
     if not errs:
@@ -195,14 +170,6 @@ def _coherent(
     raise ValueError(f"form: unknown coherent form {form!r}; choose from {FORMS} or 'auto'")
 
 
-def _p_range(p: NDArray[np.float64]) -> Any:
-    lo, hi = p.min(axis=0), p.max(axis=0)
-    if np.any(hi <= lo):
-        return None
-    pairs = [[float(a), float(b)] for a, b in zip(lo, hi, strict=True)]
-    return pairs[0] if len(pairs) == 1 else pairs
-
-
 def _build(
     form: str,
     models: list[Ss],
@@ -215,7 +182,7 @@ def _build(
 ) -> LpvModel:
     coherent, notes = _coherent(form, models, p, Ts)
     coefs, resid = _interpolate(coherent, phi)
-    rng = _p_range(p)
+    rng = model_range(p)
     model = LpvModel(*coefs, basis=basis, Ts=Ts, p_range=rng)
     nb = len(basis)
     info: dict[str, Any] = {
@@ -240,13 +207,10 @@ def _prepare(
     local_models: Any, p: ArrayLike | None, basis: Any, freqs_hz: ArrayLike | None, do_balance: bool
 ) -> tuple[list[Ss], NDArray[np.float64], Basis, NDArray[np.float64], float | None, bool, Any]:
     models, Ts, carrier = _local_list(local_models)
-    if p is None:
-        if carrier is None:
-            raise ValueError("p: required unless local_models is a LocalModels")
-        p = carrier.p
+    p_arr = local_p(local_models, p)
     if not isinstance(basis, Basis):
         raise TypeError(f"basis: expected an lpvid basis, got {type(basis).__name__}")
-    pts = _check_p(p, len(models), basis)
+    pts = _check_p(p_arr, basis)
     phi = _regressors(basis, pts)
     if freqs_hz is None and carrier is not None:
         freqs_hz = carrier.freqs_hz
@@ -257,6 +221,7 @@ def _prepare(
     return models, pts, basis, phi, Ts, balanced, z_points(f, Ts)
 
 
+@single_blas
 def smile_candidates(
     local_models: Any,
     p: ArrayLike | None = None,
@@ -279,7 +244,7 @@ def smile_candidates(
     -------
     dict of str to LpvModel
         One model per form that could be built, keyed by form; a form that
-        fails for these models (see :mod:`lpvid.coherent`) is left out and
+        fails for these models (see :mod:`lpvid.initial.coherent`) is left out and
         its reason recorded in every model's ``info["unavailable"]``.
 
     """
@@ -313,6 +278,7 @@ def _candidates(
     return out, failed
 
 
+@single_blas
 def smile(
     local_models: Any,
     p: ArrayLike | None = None,
@@ -364,7 +330,7 @@ def smile(
     ValueError, TypeError
         On malformed or inconsistent input: mismatched models, duplicate or
         too few scheduling values, a rank-deficient basis, an unknown form.
-    lpvid.coherent.CoherenceError
+    lpvid.initial.coherent.CoherenceError
         When the requested form cannot be built (a ValueError).
 
     Notes

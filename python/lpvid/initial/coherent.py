@@ -36,13 +36,16 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._graphs import assignment
+from lpvid.frozen import stable_poles
+from lpvid.schedule import propagation_order
+
 __all__ = [
     "CoherenceError",
     "balance",
     "krylov_form",
     "modal_form",
     "pairwise_form",
-    "propagation_order",
 ]
 
 Arr = NDArray[np.float64]
@@ -64,8 +67,7 @@ def transform(model: Ss, T: Arr) -> Ss:
 
 
 def _stable(A: Arr, Ts: float | None) -> bool:
-    lam = np.linalg.eigvals(A)
-    return bool(np.all(np.abs(lam) < 1.0)) if Ts is not None else bool(np.all(lam.real < 0.0))
+    return bool(np.all(stable_poles(np.linalg.eigvals(A), Ts)))
 
 
 def balance(models: Sequence[Ss], Ts: float | None) -> tuple[list[Ss], bool]:
@@ -184,49 +186,6 @@ def krylov_form(models: Sequence[Ss], kind: str) -> tuple[list[Ss], dict[str, fl
     return out, {"condition": float(worst[ref]), "reference": ref}
 
 
-def propagation_order(p: Arr, root: int | None = None) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
-    """Visit order and parents of the points along a minimum spanning tree.
-
-    The points are joined by the minimum spanning tree of their distances in
-    the scheduling space (each parameter scaled to [0, 1]); the tree is
-    walked breadth first from ``root``, by default the point nearest the
-    centre. In one dimension this is the chain of sorted points walked
-    outwards from the root.
-
-    Parameters
-    ----------
-    p : ndarray, shape (N, Np)
-    root : int, optional
-        The point to start from (default: the one whose farthest point is
-        nearest).
-
-    Returns
-    -------
-    order : ndarray of int
-        Points in visiting order (the root first).
-    parent : ndarray of int
-        ``parent[k]`` is the already visited neighbour of point k (-1 for the root).
-
-    """
-    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
-
-    N = p.shape[0]
-    span = np.ptp(p, axis=0)
-    s = (p - p.min(axis=0)) / np.where(span > 0, span, 1.0)
-    dist = np.linalg.norm(s[:, None, :] - s[None, :, :], axis=2)
-    if root is None:
-        root = int(np.argmin(np.max(dist, axis=1)))
-    elif not 0 <= root < N:
-        raise ValueError(f"root: expected a point index in 0..{N - 1}, got {root}")
-    if N == 1:
-        return np.array([0]), np.array([-1])
-    # Strictly positive weights: the sparse tree drops zero entries.
-    tree = minimum_spanning_tree(dist + 1e-300)
-    order, parent = breadth_first_order(tree, root, directed=False)
-    parent = np.where(parent < 0, -1, parent)
-    return order, parent
-
-
 def _modes(model: Ss, Ts: float | None) -> list[dict[str, object]]:
     """Modes of one model: eigenvalue (Im >= 0), output and input vectors."""
     A, B, C, _ = model
@@ -263,8 +222,6 @@ def _match_cost(a: dict[str, object], b: dict[str, object]) -> float:
 
 def _track(all_modes: list[list[dict[str, object]]], p: Arr) -> list[list[dict[str, object]]]:
     """Reorder every point's modes so that index j is the same mode everywhere."""
-    from scipy.optimize import linear_sum_assignment
-
     counts = {(sum(m["real"] for m in ms), len(ms)) for ms in all_modes}  # type: ignore[misc]
     if len(counts) != 1:
         raise CoherenceError(
@@ -287,7 +244,7 @@ def _track(all_modes: list[list[dict[str, object]]], p: Arr) -> list[list[dict[s
             if not ri:
                 continue
             cost = np.array([[_match_cost(ref[a], mine[b]) for b in mi] for a in ri])
-            rows, cols = linear_sum_assignment(cost)
+            rows, cols = assignment(cost)
             for a, b in zip(rows, cols, strict=True):
                 out[ri[a]] = mine[mi[b]]
         tracked[k] = out  # type: ignore[assignment]

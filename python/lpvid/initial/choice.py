@@ -1,0 +1,95 @@
+"""The choice of a start among the refined initial candidates."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from lpvid._checks import positive_float
+from lpvid.initial.candidates import Candidate
+
+__all__ = ["choose"]
+
+
+def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Candidate, str]:
+    """The best initial candidate, and why.
+
+    Only the candidates refined to convergence (:attr:`Candidate.refined`:
+    not dropped by the race of the starts) whose frozen models are stable
+    between the points (:attr:`Candidate.stable`) take part, when there are
+    any: a model that
+    fits the points and goes unstable between them is rarely what the data
+    mean, however it fares at a few validation points.
+
+    With validation data (every candidate has ``validation_vnls``): the
+    lowest validation V_NLS; candidates within ``tolerance`` of it count
+    as equal and the simplest of them (most constant groups), then the
+    one with the lowest validation V_NLS, wins.
+
+    Without: the lowest identification V_NLS, where candidates within two
+    standard deviations of the noise floor (``2 sqrt(M)``, M the number of
+    residuals) of the best count as equal and the simplest wins, then the
+    lowest V_NLS.
+
+    Parameters
+    ----------
+    candidates : sequence of Candidate
+    tolerance : float
+        Relative slack on the best validation V_NLS.
+
+    Returns
+    -------
+    Candidate, str
+
+    """
+    cands = list(candidates)
+    if not cands:
+        raise ValueError("candidates: needs at least one candidate")
+    for k, c in enumerate(cands):
+        if not isinstance(c, Candidate):
+            raise TypeError(f"candidates[{k}]: expected a Candidate, got {type(c).__name__}")
+    tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    finite = [c for c in cands if np.isfinite(c.vnls)] or cands
+    refined = [c for c in finite if c.refined] or finite
+    pool = [c for c in refined if c.stable] or refined
+    dropped = len(refined) - len(pool)
+    raced = len(finite) - len(refined)
+    among = (
+        f" among the {len(pool)} candidates whose frozen models are stable between the "
+        f"points ({dropped} left out)"
+        if dropped
+        else ""
+    )
+    if raced:
+        among += f"; {raced} start(s) dropped by the race of the starts"
+    if all(c.validation_vnls is not None for c in pool):
+        vals = {id(c): float(c.validation_vnls) for c in pool}  # type: ignore[arg-type]
+        best = min(vals.values())
+        tied = [c for c in pool if vals[id(c)] <= (1 + tol) * best]
+        pick = min(tied, key=lambda c: (-c.constant_groups, vals[id(c)]))
+        reason = (
+            f"lowest validation V_NLS ({vals[id(pick)]:.5g}, "
+            f"{pick.validation_ratio:.3f} x its noise floor){among}"
+        )
+        if len(tied) > 1:
+            reason += (
+                f"; {len(tied)} candidates within {tol:.0%} of the best validation V_NLS, "
+                f"the simplest ({pick.constant_groups} constant groups) kept"
+            )
+        return pick, reason
+    floor = pool[0].noise_floor
+    best_v = min(c.vnls for c in pool)
+    slack = 2.0 * np.sqrt(floor)
+    tied = [c for c in pool if c.vnls <= best_v + slack]
+    pick = min(tied, key=lambda c: (-c.constant_groups, c.vnls))
+    reason = (
+        f"no validation data; lowest identification V_NLS ({pick.vnls:.5g}, "
+        f"{pick.ratio:.3f} x the noise floor){among}"
+    )
+    if len(tied) > 1:
+        reason += (
+            f"; {len(tied)} candidates within 2 sqrt(M) = {slack:.3g} of the best, "
+            f"the simplest ({pick.constant_groups} constant groups) kept"
+        )
+    return pick, reason

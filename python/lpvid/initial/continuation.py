@@ -1,0 +1,231 @@
+"""Local models by continuation along the scheduling axes, from the best-determined point."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._threads import single_blas
+from lpvid.data import FrfData
+from lpvid.fit import fit_nls, raise_if_interrupted
+from lpvid.initial.coherent import propagation_order
+from lpvid.initial.diagnosis import Consistency, consistency
+from lpvid.initial.localmodels import LocalModels
+from lpvid.initial.poles import pole_distance, pole_uncertainty
+from lpvid.model import LpvModel
+from lpvid.schedule import unit_scaled
+
+__all__ = ["best_determined", "continuation_order", "continue_local"]
+
+
+def best_determined(
+    local_models: LocalModels,
+    data: FrfData,
+    diagnosis: Consistency | None = None,
+    fixed: Any = None,
+) -> int:
+    """The point to start a continuation from: the best-determined local model.
+
+    Among the points that the diagnosis does not flag, whose model is
+    stable and whose V_NLS relative to the noise floor is within two
+    standard deviations of the best (``2 / sqrt(F l r)``), the one whose
+    least certain pole is the most certain (:func:`pole_uncertainty`).
+
+    Parameters
+    ----------
+    local_models : LocalModels
+    data : FrfData
+        The data the models were identified from.
+    diagnosis : Consistency, optional
+        Default :func:`consistency` of ``local_models``.
+    fixed : optional
+        Fixed parameters of the local models (``{"D": True}`` when strictly proper).
+
+    Returns
+    -------
+    int
+
+    """
+    diag = consistency(local_models) if diagnosis is None else diagnosis
+    N = len(local_models)
+    floor = np.maximum(np.asarray(local_models.noise_floor, dtype=float), 1.0)
+    rel = np.asarray(local_models.vnls, dtype=float) / floor
+    rel = np.where(np.isfinite(rel), rel, np.inf)
+    tol = 2.0 / np.sqrt(floor)
+    ok = [q for q in range(N) if q not in diag.inconsistent and not local_models.unstable[q]]
+    ok = ok or list(range(N))
+    ok = [q for q in ok if rel[q] <= np.min(rel[ok]) + tol[q]] or ok
+    spread = {}
+    for q in ok:
+        try:
+            spread[q] = float(np.max(pole_uncertainty(local_models[q], data.subset([q]), fixed)))
+        except (np.linalg.LinAlgError, ValueError):
+            spread[q] = np.inf
+    return min(ok, key=lambda q: (spread[q], rel[q]))
+
+
+def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
+    """The walk of a continuation: points in visiting order and their parents.
+
+    Along the minimum spanning tree of the points (scaled scheduling space),
+    breadth first from ``root``: in one dimension outwards along the sorted
+    points, for several parameters along a nearest-neighbour tree
+    (:func:`lpvid.schedule.propagation_order`).
+
+    Parameters
+    ----------
+    p : array_like, shape (N,) or (N, Np)
+    root : int
+
+    Returns
+    -------
+    order : ndarray of int
+        The root first; every point after its parent.
+    parent : ndarray of int
+        ``parent[q]``: the visited neighbour point q starts from (-1 for the root).
+
+    """
+    arr = real_array(p, "p", ndim=(1, 2))
+    arr = arr.reshape(arr.shape[0], -1)
+    root = positive_int(root, "root", minimum=0)
+    return propagation_order(arr, root)
+
+
+@single_blas
+def continue_local(
+    data: FrfData,
+    local: LocalModels,
+    *,
+    root: int | None = None,
+    strictly_proper: bool = False,
+    tolerance: float = 1.0,
+    max_iter: int = 100,
+    diagnosis: Consistency | None = None,
+) -> LocalModels:
+    """Local models by continuation along the scheduling axes.
+
+    Starting from the best-determined point (:func:`best_determined`), each
+    next point's model is refined by :func:`lpvid.fit_nls` on that point's
+    data from the model of the point before it, walking outwards along a
+    nearest-neighbour tree (:func:`continuation_order`). The refinement stops
+    as soon as V_NLS comes within ``tolerance * sqrt(F l r)`` of the best
+    that point allows (the lower of the plain model's V_NLS and the noise
+    floor ``F l r``): the models then stay on one branch and in nearly the
+    same state coordinates as their neighbours.
+
+    Per point, of the continued and the plain model, those whose V_NLS is
+    within ``tolerance * sqrt(F l r)`` of the better one fit equally well;
+    of these, the ones whose poles stay near the parent's (worst matched
+    pole distance within the diagnosis' allowance for the step,
+    ``max(threshold * reference * step, min_distance)``, see
+    :class:`Consistency`) are consistent, and the continued one is
+    preferred among them; when none is consistent, the one nearest the
+    parent is kept. The walk goes on from the kept model.
+
+    Parameters
+    ----------
+    data : FrfData
+        The data the plain local models were identified from.
+    local : LocalModels
+        Plain local models (:func:`lpvid.identify_lti`).
+    root : int, optional
+        The point to start from; default :func:`best_determined`.
+    strictly_proper : bool
+        Keep D at zero.
+    tolerance : float
+        Slack on V_NLS in standard deviations of the noise floor
+        (``sqrt(F l r)``).
+    max_iter : int
+        Most Levenberg-Marquardt steps per point.
+    diagnosis : Consistency, optional
+        :func:`lpvid.consistency` of ``local``, when already computed.
+
+    Returns
+    -------
+    LocalModels
+        With ``starts`` saying, per point, which start the model came from
+        (``"plain"`` for the root and for points that kept the plain model,
+        ``"continuation from q"`` otherwise) and ``consistency``, the
+        diagnosis of the plain models.
+
+    """
+    if not isinstance(data, FrfData):
+        raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
+    if not isinstance(local, LocalModels):
+        raise TypeError(f"local: expected LocalModels, got {type(local).__name__}")
+    if len(local) != data.n_points:
+        raise ValueError(f"local: {len(local)} models for {data.n_points} data points")
+    tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    max_iter = positive_int(max_iter, "max_iter")
+    if len(local) < 2:
+        raise ValueError("local: a continuation needs at least two points")
+    diag = consistency(local) if diagnosis is None else diagnosis
+    fixed = {"D": True} if strictly_proper else None
+    if root is None:
+        root = best_determined(local, data, diag, fixed)
+    order, parent = continuation_order(data.p, root)
+    N = data.n_points
+    models: list[LpvModel | None] = [None] * N
+    costs = np.array(local.vnls, dtype=float)
+    conv = np.array(local.converged, dtype=bool)
+    starts = ["plain"] * N
+    initial: list[LpvModel] = list(local.initial) if local.initial is not None else list(local)
+    models[root] = local[root]
+    scaled = unit_scaled(data.p)
+    for q in order[1:]:
+        m = int(parent[q])
+        start = models[m]
+        assert start is not None
+        point = data.subset([q])
+        floor = float(point.n_residuals)
+        target = min(float(local.vnls[q]), floor) + tol * np.sqrt(floor)
+
+        def stop(row: dict[str, Any], target: float = target) -> bool:
+            return bool(row["vnls"] > target)  # False stops the fit
+
+        fit = raise_if_interrupted(
+            fit_nls(start, point, fixed, max_iter=max_iter, callback=stop, warn=False)
+        )
+        cont = LpvModel(
+            *fit.model.matrices().values(),
+            basis=start.basis,
+            Ts=data.Ts,
+            info={
+                "method": "continuation + fit_nls",
+                "start": f"point {m}",
+                "n_iter": int(fit.n_iter),
+            },
+        )
+        # Both starts are acceptable when they fit within the noise of the
+        # better one; of those, the ones consistent with the parent's model
+        # (pole distance within the diagnosis' allowance for this step) are
+        # preferred, the continued one first (it also keeps the state
+        # coordinates of its neighbour); else the one nearest the parent.
+        best_v = min(fit.vnls, float(local.vnls[q]))
+        options = {"continuation": (cont, fit.vnls), "plain": (local[q], float(local.vnls[q]))}
+        fits_ok = [k for k, (_, v) in options.items() if v <= best_v + tol * np.sqrt(floor)]
+        step = float(np.linalg.norm(scaled[q] - scaled[m]))
+        allowed = max(diag.threshold * diag.reference * step, diag.min_distance)
+        dist = {k: pole_distance(options[k][0], start) for k in fits_ok}
+        near = [k for k in fits_ok if dist[k] <= allowed]
+        choice = near[0] if near else min(fits_ok, key=lambda k: dist[k])
+        models[q], costs[q] = options[choice]
+        if choice == "continuation":
+            conv[q] = True
+            starts[q] = f"continuation from {m}"
+            initial[q] = start
+    out = LocalModels(
+        models,  # type: ignore[arg-type]
+        data.p,
+        data.freqs_hz,
+        costs,
+        local.noise_floor,
+        conv,
+        initial,
+        starts=starts,
+        consistency=diag,
+    )
+    return out

@@ -1,0 +1,211 @@
+"""The container of local LTI models, one per scheduling point, and its checks."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import TYPE_CHECKING, Any, overload
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import real_array, same_sample_time
+from lpvid.frozen import stable_poles
+from lpvid.model import LpvModel
+
+if TYPE_CHECKING:
+    from lpvid.initial.diagnosis import Consistency
+
+__all__ = ["LocalModels", "is_stable", "local_p", "lti_models"]
+
+
+def is_stable(model: LpvModel) -> bool:
+    """Whether an LTI model's poles lie strictly inside the stability region."""
+    return bool(np.all(stable_poles(np.linalg.eigvals(model.A[0]), model.Ts)))
+
+
+class LocalModels(Sequence[LpvModel]):
+    """LTI models identified at the scheduling points, one per point.
+
+    Behaves as a read-only sequence of :class:`~lpvid.LpvModel` (each with
+    no basis, Nb = 0, and the data's ``Ts``) and carries per-point figures of
+    merit. :func:`lpvid.smile` accepts it directly.
+
+    Parameters
+    ----------
+    models : sequence of LpvModel
+        The LTI models.
+    p : array_like, shape (N,) or (N, Np)
+        Scheduling value of each model.
+    freqs_hz : array_like, optional
+        The data's frequency lines.
+    vnls : array_like, optional
+        V_NLS of each model on its own point's data.
+    noise_floor : array_like of int, optional
+        Number of complex residuals of each point (``F l r``), the expected
+        V_NLS at the noise floor.
+    converged : array_like of bool, optional
+        Whether the refinement of each model converged.
+    initial : sequence of LpvModel, optional
+        The subspace estimates the refinement started from.
+    starts : sequence of str, optional
+        Per point, which start the kept model came from: ``"plain"`` (the
+        subspace estimates, the default) or ``"continuation from q"``
+        (:func:`lpvid.initial.continue_local`).
+    consistency : Consistency, optional
+        The diagnosis of the plain local models
+        (:func:`lpvid.consistency`), when it was run.
+
+    Attributes
+    ----------
+    p, freqs_hz, vnls, noise_floor, converged, initial, starts
+        As given.
+    unstable : ndarray of bool
+        True for a model with a pole outside the stability region.
+    consistency : Consistency or None
+        As given.
+
+    """
+
+    def __init__(
+        self,
+        models: Sequence[LpvModel],
+        p: ArrayLike,
+        freqs_hz: ArrayLike | None = None,
+        vnls: ArrayLike | None = None,
+        noise_floor: ArrayLike | None = None,
+        converged: ArrayLike | None = None,
+        initial: Sequence[LpvModel] | None = None,
+        starts: Sequence[str] | None = None,
+        consistency: Consistency | None = None,
+    ) -> None:
+        self._models = tuple(models)
+        for k, m in enumerate(self._models):
+            if not isinstance(m, LpvModel) or m.n_basis != 0:
+                raise TypeError(f"models[{k}]: expected an LTI LpvModel (Nb = 0)")
+        N = len(self._models)
+        self.p: NDArray[np.float64] = real_array(p, "p", ndim=(1, 2))
+        if self.p.shape[0] != N:
+            raise ValueError(f"p: {self.p.shape[0]} scheduling values for {N} models")
+        self.freqs_hz = None if freqs_hz is None else real_array(freqs_hz, "freqs_hz", ndim=1)
+        nan = np.full(N, np.nan)
+        self.vnls: NDArray[np.float64] = nan if vnls is None else real_array(vnls, "vnls", ndim=1)
+        self.noise_floor: NDArray[np.int_] = (
+            np.zeros(N, dtype=int) if noise_floor is None else np.asarray(noise_floor, dtype=int)
+        )
+        self.converged: NDArray[np.bool_] = (
+            np.ones(N, dtype=bool) if converged is None else np.asarray(converged, dtype=bool)
+        )
+        self.unstable: NDArray[np.bool_] = np.array(
+            [not is_stable(m) for m in self._models], dtype=bool
+        )
+        self.initial = None if initial is None else tuple(initial)
+        self.starts: tuple[str, ...] = ("plain",) * N if starts is None else tuple(starts)
+        if len(self.starts) != N:
+            raise ValueError(f"starts: expected one label per model ({N}), got {len(self.starts)}")
+        self.consistency = consistency
+        for arr in (self.p, self.vnls, self.noise_floor, self.converged, self.unstable):
+            if arr.shape[0] != N:
+                raise ValueError(f"expected one value per model ({N}), got shape {arr.shape}")
+            arr.setflags(write=False)
+
+    @overload
+    def __getitem__(self, index: int) -> LpvModel: ...
+    @overload
+    def __getitem__(self, index: slice) -> tuple[LpvModel, ...]: ...
+    def __getitem__(self, index: int | slice) -> LpvModel | tuple[LpvModel, ...]:
+        return self._models[index]
+
+    def __len__(self) -> int:
+        return len(self._models)
+
+    def __iter__(self) -> Iterator[LpvModel]:
+        return iter(self._models)
+
+    @property
+    def Ts(self) -> float | None:
+        """Sample time of the models (None: continuous time)."""
+        return self._models[0].Ts if self._models else None
+
+    @property
+    def order(self) -> int:
+        """State dimension n of the models."""
+        return self._models[0].n_states
+
+    def table(self) -> str:
+        """One line per point: p, V_NLS, noise floor, their ratio, stability, start."""
+        lines = ["  q  p                     V_NLS   floor   ratio  stable  start"]
+        for q in range(len(self)):
+            pq = np.atleast_1d(self.p[q])
+            ps = ", ".join(f"{v:.4g}" for v in pq)
+            ratio = self.vnls[q] / self.noise_floor[q] if self.noise_floor[q] else np.nan
+            lines.append(
+                f"{q:3d}  {ps:<18s} {self.vnls[q]:9.4g} {self.noise_floor[q]:7d} {ratio:7.3f}"
+                f"  {'no' if self.unstable[q] else 'yes':6s}  {self.starts[q]}"
+            )
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        kind = "continuous time" if self.Ts is None else f"Ts={self.Ts:g} s"
+        n_bad = int(self.unstable.sum())
+        return f"LocalModels(N={len(self)}, n={self.order}, {kind}, {n_bad} unstable)"
+
+
+def lti_models(local_models: Any, *, minimum: int = 1) -> list[LpvModel]:
+    """Check a set of local LTI models: LTI, of one size (n, r, l) and one sample time.
+
+    Parameters
+    ----------
+    local_models : LocalModels or sequence of LpvModel
+    minimum : int
+        Fewest models accepted.
+
+    Returns
+    -------
+    list of LpvModel
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming ``local_models`` (with the index of the offending model).
+    """
+    if isinstance(local_models, LpvModel) or not isinstance(local_models, Sequence):
+        raise TypeError(
+            "local_models: expected LocalModels or a list of LTI LpvModel, "
+            f"got {type(local_models).__name__}"
+        )
+    models = list(local_models)
+    if len(models) < minimum:
+        raise ValueError(f"local_models: needs at least {minimum} model(s), got {len(models)}")
+    for k, m in enumerate(models):
+        if not isinstance(m, LpvModel):
+            raise TypeError(f"local_models[{k}]: expected an LpvModel, got {type(m).__name__}")
+        if m.n_basis != 0:
+            raise ValueError(
+                f"local_models[{k}]: expected an LTI model (Nb = 0), got Nb={m.n_basis}"
+            )
+        if m.shape[:3] != models[0].shape[:3]:
+            raise ValueError(
+                f"local_models[{k}]: (n, r, l) = {m.shape[:3]} differs from the first model's "
+                f"{models[0].shape[:3]}"
+            )
+        if not same_sample_time(m.Ts, models[0].Ts):
+            raise ValueError(f"local_models[{k}]: Ts={m.Ts} differs from the first model's")
+    return models
+
+
+def local_p(local_models: Any, p: ArrayLike | None) -> NDArray[np.float64]:
+    """The scheduling values of local models: ``p`` checked, or those a LocalModels carries.
+
+    Returns
+    -------
+    ndarray, shape (N,) or (N, Np)
+        One row per model.
+    """
+    if p is None:
+        if not isinstance(local_models, LocalModels):
+            raise ValueError("p: required unless local_models is a LocalModels")
+        p = local_models.p
+    arr = real_array(p, "p", ndim=(1, 2))
+    if arr.shape[0] != len(local_models):
+        raise ValueError(f"p: {arr.shape[0]} scheduling values for {len(local_models)} models")
+    return arr

@@ -1,0 +1,41 @@
+//! What the optimisers need of an identification problem: the weighted
+//! least-squares cost, its gradient and Gauss-Newton matrix over the free
+//! parameters. [`crate::Problem`] (local FRF data) is one; time records and
+//! sums of costs are others. Levenberg-Marquardt and the l2,1 fit work on
+//! any [`Objective`].
+
+use crate::error::Result;
+use crate::layout::{FreeSet, Shape};
+
+/// V_NLS with its gradient and Gauss-Newton matrix at one `theta`,
+/// restricted to the free parameters.
+#[derive(Debug, Clone)]
+pub struct GaussNewton {
+    /// `V_NLS = r^T r`, `r` the real weighted residual.
+    pub vnls: f64,
+    /// `dV/dtheta = 2 J^T r` over the free parameters.
+    pub gradient: Vec<f64>,
+    /// `J^T J` over the free parameters, symmetric, column-major.
+    pub gram: Vec<f64>,
+}
+
+impl GaussNewton {
+    /// Number of free parameters.
+    pub fn dim(&self) -> usize {
+        self.gradient.len()
+    }
+}
+
+/// A weighted least-squares cost of the parameters of an LPV model.
+pub trait Objective: Sync {
+    /// The model shape: the layout of theta.
+    fn shape(&self) -> &Shape;
+    /// The noise floor `M`: the expected cost at the true system when the
+    /// noise levels are right (complex residuals of FRF data, real residuals
+    /// of time records). The l2,1 objective uses `V / M`.
+    fn n_residuals(&self) -> usize;
+    /// The cost `V(theta)`; an error when the model cannot be evaluated.
+    fn cost(&self, theta: &[f64]) -> Result<f64>;
+    /// Cost, gradient and `J^T J` at `theta` over the free parameters.
+    fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton>;
+}

@@ -1,0 +1,132 @@
+"""Ctrl-C (SIGINT) while the core computes: fits stop cleanly, pipelines stop, the CLI exits 130.
+
+Python ignores SIGINT for good when the process starts with it ignored (a
+background job, nohup, some CI runners). These tests install Python's own
+handler for their duration and restore the one they found.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import warnings
+
+import numpy as np
+import pytest
+
+import lpvid
+
+
+def sigint_when(event: threading.Event, delay: float) -> threading.Thread:
+    """Send SIGINT to this process ``delay`` seconds after ``event`` is set."""
+
+    def run() -> None:
+        if event.wait(timeout=60):
+            threading.Event().wait(delay)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+@pytest.fixture(scope="module")
+def gantry():
+    ds = lpvid.datasets.gantry(n_lines=120)
+    local = lpvid.identify_lti(ds.identification, ds.order)
+    start = lpvid.smile(local, basis=ds.basis, form="modal")
+    return ds, start
+
+
+def started(event: threading.Event):
+    """A callback that only says the fit is running (the signal arrives while Rust computes)."""
+
+    def callback(row):
+        event.set()
+
+    return callback
+
+
+def test_ctrl_c_in_fit_nls_returns_the_best_model_so_far(python_sigint, gantry):
+    ds, good = gantry
+    data = ds.identification
+    # A start far off: about 200 steps, 0.3 s, to the end. The signal is sent
+    # as soon as the first step is done; whether it lands in the core or in
+    # the callback, the fit stops the same way.
+    rng = np.random.default_rng(0)
+    start = good.with_theta(good.theta * (1 + 0.2 * rng.standard_normal(good.theta.size)))
+    go = threading.Event()
+    sigint_when(go, 0.0)
+    fit = lpvid.fit_nls(start, data, max_iter=100000, xtol=0, ftol=0, callback=started(go))
+    assert fit.interrupted and fit.stop == "keyboard_interrupt"
+    assert "Ctrl-C" in fit.message
+    assert fit.vnls <= lpvid.vnls(start, data)
+    assert fit.vnls == pytest.approx(lpvid.vnls(fit.model, data), rel=1e-12)
+    with pytest.raises(KeyboardInterrupt):
+        lpvid.fit.raise_if_interrupted(fit)
+
+
+def test_ctrl_c_in_fit_l21_without_a_callback(python_sigint, gantry):
+    ds, start = gantry
+    data = ds.identification
+    go = threading.Event()
+    sigint_when(go, 0.3)
+    go.set()  # no callback: the core alone notices the signal
+    reg = lpvid.fit_l21(start, data, 1e-3, max_outer=1000, max_inner=1000, ftol=0.0, dphi_min=0.0)
+    assert reg.stop == "keyboard_interrupt" and reg.interrupted
+    assert reg.n_iter < 1000
+    assert reg.vnls == pytest.approx(lpvid.vnls(reg.model, data), rel=1e-12)
+
+
+def test_ctrl_c_in_l21_path_stops_the_sweep(python_sigint, gantry):
+    ds, start = gantry
+    go = threading.Event()
+    sigint_when(go, 0.3)
+    path = lpvid.l21_path(
+        start,
+        ds.identification,
+        [1e-1, 1e-2, 1e-3],
+        max_outer=1000,
+        max_inner=1000,
+        ftol=0.0,
+        dphi_min=0.0,
+        dvnls_min=0.0,
+        callback=started(go),
+    )
+    assert len(path) < 3
+    assert path[-1].stop == "keyboard_interrupt"
+    assert all(r.stop != "keyboard_interrupt" for r in path.results[:-1])
+
+
+def test_ctrl_c_in_identify_stops_the_whole_run(python_sigint, gantry):
+    ds, _ = gantry
+    go = threading.Event()
+    sigint_when(go, 0.5)
+    go.set()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        with pytest.raises(KeyboardInterrupt):
+            lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
+
+
+def test_ctrl_c_in_the_demo_exits_130_and_writes_nothing(tmp_path):
+    out = tmp_path / "demo"
+    # The child gets the default SIGINT disposition whatever this process has,
+    # so that Python installs its handler there.
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lpvid.cli", "demo", "--out", str(out), "--no-figures"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    assert proc.stdout is not None
+    for line in proc.stdout:  # wait until the fits are running
+        if "initial models" in line:
+            break
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "lpvid demo: interrupted"
+    assert not (out / "report.md").exists() and not (out / "model.json").exists()
