@@ -36,6 +36,7 @@ def files(tmp_path_factory):
     (folder / "garbage.npz").write_bytes(b"PK\x03\x04 not really a zip file")
     np.savez(folder / "partial.npz", p=data.p, freqs_hz=data.freqs_hz)
     lpvid.LpvModel([[0.5]], [[1.0]], [[1.0]], Ts=1.0).save(folder / "model.json")
+    (folder / "bad.toml").write_text('Ts = 0.0005\noutputs = ["y"]\n')
     (folder / "a-file").write_text("in the way")
     (folder / "a-folder").mkdir()
     return folder
@@ -130,6 +131,10 @@ MISUSE = [
     ("tolerance-inf", [*FIT, *VAL, "--tolerance", "inf"], "--tolerance"),
     ("tolerance-not-a-number", [*FIT, *VAL, "--tolerance", "ten"], "--tolerance"),
     ("tolerance-without-validation", [*FIT, "--tolerance", "0.2"], "--tolerance"),
+    # --lines (measured files)
+    ("lines-unknown", [*FIT, "--lines", "all"], "--lines"),
+    ("lines-without-a-manifest", [*FIT, "--lines", "common"], "--lines"),
+    ("data-bad-manifest", ["fit", "{f}/bad.toml", "--order", "6", "--out", "{out}"], "data"),
     # --out
     ("out-missing", ["fit", "{f}/id.npz", "--order", "6"], "--out"),
     ("out-is-a-file", [*FIT[:5], "{f}/a-file"], "--out"),
