@@ -37,6 +37,15 @@ pub enum Error {
         /// Index of the frequency line.
         line: usize,
     },
+    /// A frozen model on the scheduling range is unstable (or closer to the
+    /// stability boundary than asked): a fit with stability kept refuses it.
+    #[error("the frozen model at check point {point} is unstable (stability margin {margin:.3e})")]
+    Unstable {
+        /// Index of the check point.
+        point: usize,
+        /// Its stability margin (see `stable::margin`).
+        margin: f64,
+    },
     /// A linear-algebra or cone-solver failure that is not the user's input.
     #[error("numerical failure: {0}")]
     Numerical(String),

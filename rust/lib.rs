@@ -19,8 +19,10 @@ pub mod lti;
 pub mod objective;
 pub mod problem;
 pub mod response;
+pub mod sensitivity;
 pub mod simulate;
 pub mod socp;
+pub mod stable;
 #[doc(hidden)]
 pub mod testing;
 
@@ -36,3 +38,4 @@ pub use lm::{levenberg_marquardt, LmSettings};
 pub use objective::{GaussNewton, Objective};
 pub use problem::Problem;
 pub use response::frequency_response;
+pub use stable::{FrozenRange, Stable};

@@ -96,7 +96,9 @@ def test_demo_model_is_accurate_and_simpler(demo):
 
 def test_identify_result_is_consistent(gantry_result):
     ds, res = gantry_result
-    assert res.model is res.entries[res.chosen].model
+    # refit=True (the default): the chosen model refitted on its support
+    assert res.refit is not None and res.model is res.refit.model is res.final.model
+    assert res.final.n_groups == res.entry.n_groups
     assert res.entries[0].gamma == 0 and len(res.entries) == 1 + len(res.path)
     for e in res.entries:
         assert e.vnls == pytest.approx(lpvid.vnls(e.model, ds.identification), rel=1e-12)

@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, initial, plots, readers, report
+from lpvid import datasets, initial, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -31,11 +31,16 @@ from lpvid.model import LpvModel
 from lpvid.pipeline import IdentifyResult, identify
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
+from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
+from lpvid.trust.covariance import covariance
+from lpvid.trust.refit import refit
+from lpvid.trust.stability import stability
 
 __all__ = [
     "Basis",
     "Consistency",
     "ConvergenceWarning",
+    "Covariance",
     "CustomBasis",
     "FitResult",
     "FrfData",
@@ -46,12 +51,15 @@ __all__ = [
     "Legendre",
     "LocalModels",
     "LpvModel",
+    "LyapunovCertificate",
     "Multisine",
     "PathResult",
     "Polynomial",
     "SingularModelError",
+    "StabilityReport",
     "__version__",
     "consistency",
+    "covariance",
     "datasets",
     "estimate_frf",
     "fd_subspace",
@@ -68,9 +76,12 @@ __all__ = [
     "multisine",
     "plots",
     "readers",
+    "refit",
     "report",
     "residual",
     "smile",
     "smile_candidates",
+    "stability",
+    "trust",
     "vnls",
 ]

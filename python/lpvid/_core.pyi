@@ -19,6 +19,9 @@ __all__ = [
     "cone_step",
     "fit_nls",
     "fit_l21",
+    "FrozenRange",
+    "lti_jacobian",
+    "stability_margin",
     "l21_defaults",
     "l21_path",
     "simulate",
@@ -73,6 +76,35 @@ class Problem:
         self, theta: NDArray[np.float64], free: NDArray[np.bool_] | None = None
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
 
+@final
+class FrozenRange:
+    def __new__(
+        cls,
+        nb: int,
+        basis: NDArray[np.float64],
+        n_points: int,
+        stride: int,
+        discrete: bool,
+        tol: float,
+    ) -> Self: ...
+    def __len__(self) -> int: ...
+    def margins(
+        self, n: int, r: int, l: int, theta: NDArray[np.float64]
+    ) -> NDArray[np.float64]: ...
+    def worst(self, n: int, r: int, l: int, theta: NDArray[np.float64]) -> tuple[int, float]: ...
+
+def lti_jacobian(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    theta: NDArray[np.float64],
+    basis: NDArray[np.float64],
+    n_points: int,
+    z: NDArray[np.complex128],
+) -> NDArray[np.complex128]: ...
+def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ...
+
 _Settings = dict[str, float | int | str]
 _Callback = Callable[[dict[str, Any]], Any] | None
 
@@ -82,6 +114,7 @@ def fit_nls(
     free: NDArray[np.bool_] | None,
     settings: _Settings,
     callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def fit_l21(
     problem: Problem,
@@ -90,6 +123,7 @@ def fit_l21(
     free: NDArray[np.bool_] | None,
     settings: _Settings,
     callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def l21_path(
     problem: Problem,
@@ -99,6 +133,7 @@ def l21_path(
     free: NDArray[np.bool_] | None,
     settings: _Settings,
     callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> list[tuple[float, dict[str, Any]]]: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(

@@ -117,6 +117,8 @@ def fit_nls(
     lambda0: float = 1e-2,
     callback: Callback | None = None,
     warn: bool = True,
+    stable: bool = False,
+    p_range: Any = None,
 ) -> FitResult:
     """Minimise V_NLS by Levenberg-Marquardt (method.md (11)).
 
@@ -151,6 +153,13 @@ def fit_nls(
     warn : bool
         Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at
         ``max_iter`` with V_NLS still falling (default True).
+    stable : bool
+        Keep every frozen model on ``p_range`` stable: steps that leave the
+        stable set are refused (see :mod:`lpvid.trust.enforce`). The start
+        must be stable.
+    p_range : optional
+        Scheduling range for ``stable``; default the model's (its basis
+        domain), else the data's.
 
     Returns
     -------
@@ -159,7 +168,8 @@ def fit_nls(
     Raises
     ------
     ValueError
-        On bad arguments, or when V_NLS is not finite at the start.
+        On bad arguments, when V_NLS is not finite at the start, or with
+        ``stable=True`` when the start is not stable over the range.
     """
     settings = dict(
         max_iter=positive_int(max_iter, "max_iter"),
@@ -169,11 +179,34 @@ def fit_nls(
         lambda0=positive_float(lambda0, "lambda0"),
     )
     problem = build_problem(model, data)
-    raw = _core.fit_nls(problem, model.theta, free_mask(model, fixed), settings, _monitor(callback))
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    raw = _stable_run(
+        model,
+        stable,
+        _p_range_and_sup(model, data, p_range)[0] if stable else None,
+        lambda rng: _core.fit_nls(problem, model.theta, free, settings, monitor, rng),
+    )
     result = FitResult._from_core(raw, model, data.n_residuals)
     if warn:
         warn_if_unconverged(result, "fit_nls")
     return result
+
+
+def _check_stable(stable: Any) -> bool:
+    if not isinstance(stable, (bool, np.bool_)):
+        raise TypeError(f"stable: expected True or False, got {type(stable).__name__}")
+    return bool(stable)
+
+
+def _stable_run(
+    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
+) -> dict[str, Any]:
+    """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
+    if not _check_stable(stable):
+        return run(None)
+    from lpvid.trust.enforce import run_stable
+
+    return run_stable(model, p_range, run)
 
 
 def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any, np.ndarray]:
@@ -215,6 +248,7 @@ def fit_l21(
     p_range: Any = None,
     callback: Callback | None = None,
     warn: bool = True,
+    stable: bool = False,
     **options: Any,
 ) -> L21Result:
     """Reweighted l2,1-regularised fit: Algorithm 1 of the paper (method.md section 4).
@@ -254,7 +288,8 @@ def fit_l21(
     fixed : optional
         Parameters kept at their starting value, as in :func:`lpvid.fixed_mask`.
     p_range : optional
-        Scheduling range for ``||psi_i||_inf``; default the model's, else the data's.
+        Scheduling range for ``||psi_i||_inf`` (and for ``stable``); default
+        the model's, else the data's.
     callback : callable, optional
         Called after every cone step with a dict; returning ``False`` stops.
         Ctrl-C stops the fit and returns the best model so far
@@ -262,6 +297,9 @@ def fit_l21(
     warn : bool
         Warn (:class:`lpvid.ConvergenceWarning`) when the fit stops at its
         iteration limit with the objective still falling (default True).
+    stable : bool
+        Keep every frozen model on the range stable (as in :func:`fit_nls`);
+        the start must be stable.
     **options
         Fields of :class:`lpvid.L21Settings` to change, e.g. ``eps=1e-4``,
         ``weights="scaled"``, ``max_outer=5``.
@@ -280,8 +318,12 @@ def fit_l21(
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem = build_problem(model, data)
-    raw = _core.fit_l21(
-        problem, model.theta, sup, free_mask(model, fixed), s.to_core(g), _monitor(callback)
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    raw = _stable_run(
+        model,
+        stable,
+        rng,
+        lambda check: _core.fit_l21(problem, model.theta, sup, free, s.to_core(g), monitor, check),
     )
     result = _l21_result(raw, model, data, g, rng, s.threshold)
     if warn:
@@ -299,6 +341,7 @@ def l21_path(
     p_range: Any = None,
     callback: Callback | None = None,
     warn: bool = True,
+    stable: bool = False,
     **options: Any,
 ) -> PathResult:
     """A warm-started sweep of :func:`fit_l21` from the largest gamma to the smallest.
@@ -306,7 +349,8 @@ def l21_path(
     Each fit starts from the previous result, as in section 5.3 of the
     paper; the weights are recomputed at each start. Arguments as in
     :func:`fit_l21`; Ctrl-C stops the sweep and returns the fits so far
-    (the last one interrupted).
+    (the last one interrupted). With ``stable=True`` every fit keeps the
+    frozen models on the range stable.
 
     Returns
     -------
@@ -319,9 +363,20 @@ def l21_path(
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem = build_problem(model, data)
-    raws = _core.l21_path(
-        problem, model.theta, sup, gs, free_mask(model, fixed), s.to_core(), _monitor(callback)
-    )
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    if _check_stable(stable):
+        from lpvid.trust.enforce import stable_path
+
+        raws = stable_path(
+            model,
+            rng,
+            gs,
+            lambda m, g, check: _core.fit_l21(
+                problem, m.theta, sup, free, s.to_core(g), monitor, check
+            ),
+        )
+    else:
+        raws = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
     results = [_l21_result(raw, model, data, g, rng, s.threshold) for g, raw in raws]
     if warn:
         for r in results:

@@ -9,7 +9,6 @@ then chooses a model on the path and says why.
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,20 +18,22 @@ import numpy as np
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
+from lpvid.capacity import check_order
 from lpvid.cost import vnls
 from lpvid.data import FrfData
-from lpvid.errors import ConvergenceWarning, logger
+from lpvid.errors import logger
 from lpvid.fit import fit_l21, raise_if_interrupted, warn_if_unconverged
-from lpvid.frozen import frozen_stable
 from lpvid.initial.candidates import ROUTES, Candidate, initial_candidates
 from lpvid.initial.choice import choose
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
-from lpvid.layout import free_mask, strictly_proper
+from lpvid.layout import strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
-from lpvid.schedule import between_points
 from lpvid.settings import L21Settings
+from lpvid.trust.covariance import Covariance
+from lpvid.trust.stability import StabilityReport
+from lpvid.trust.steps import finish, identify_range, stable_fit, trust_lines
 
 __all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
 
@@ -88,7 +89,7 @@ class IdentifyResult:
     Attributes
     ----------
     model : LpvModel
-        The chosen model.
+        The chosen model (refitted on its support when ``refit``; see :attr:`refit`).
     chosen : int
         Its index in :attr:`entries`.
     reason : str
@@ -117,6 +118,20 @@ class IdentifyResult:
     timings : dict
         Seconds per stage: ``"local_s"``, ``"smile_s"``, ``"nls_s"``,
         ``"path_s"``, ``"total_s"``.
+    refit : FitResult or None
+        The chosen model refitted by Levenberg-Marquardt with its dropped
+        groups fixed at zero (``identify(..., refit=True)``, for a chosen
+        gamma > 0); :attr:`model` is then the refitted model.
+    refit_entry : PathEntry or None
+        V_NLS (and validation V_NLS) of the refitted model.
+    covariance : Covariance or None
+        First-order parameter covariance of :attr:`model` (dropped groups
+        and fixed parameters held): FRF bands through
+        ``covariance.frf_std(freqs_hz, p)``.
+    stability : StabilityReport or None
+        Stability of the frozen models of :attr:`model` over the scheduling
+        range (the model's, else the data's); ``lpvid.stability(result.model)``
+        adds the quadratic (common Lyapunov) test.
     """
 
     model: LpvModel
@@ -133,11 +148,20 @@ class IdentifyResult:
     data: FrfData
     validation: FrfData | None
     timings: dict[str, float] = field(default_factory=dict)
+    refit: FitResult | None = None
+    refit_entry: PathEntry | None = None
+    covariance: Covariance | None = None
+    stability: StabilityReport | None = None
 
     @property
     def entry(self) -> PathEntry:
         """The chosen entry."""
         return self.entries[self.chosen]
+
+    @property
+    def final(self) -> PathEntry:
+        """The entry of :attr:`model`: the refit when there is one, else the chosen entry."""
+        return self.refit_entry if self.refit_entry is not None else self.entry
 
     def table(self) -> str:
         """The accuracy-versus-simplicity table, the chosen model marked."""
@@ -161,7 +185,7 @@ class IdentifyResult:
 
     def summary(self) -> str:
         """A few lines for people."""
-        e = self.entry
+        e = self.final
         lines = [
             f"start: {self.start} ({self.initial_reason})",
             f"chosen: gamma = {e.gamma:g}, {e.n_groups} groups kept "
@@ -174,6 +198,7 @@ class IdentifyResult:
                 f"V_NLS = {e.validation_vnls:.6g} on validation data (noise floor "
                 f"{e.validation_floor}, ratio {e.validation_vnls / e.validation_floor:.3f})"
             )
+        lines += trust_lines(self.entry, self.refit_entry, self.covariance, self.stability)
         lines.append(f"time: {self.timings.get('total_s', float('nan')):.2f} s")
         return "\n".join(lines)
 
@@ -205,40 +230,6 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
     if not same_sample_time(validation.Ts, data.Ts):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
-
-
-def _check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
-    """Refuse an order whose LPV model has more parameters than the data have residuals.
-
-    The free parameters less the ``n^2`` of the state coordinates must not
-    exceed the ``2 M`` real equations of the ``M`` complex residuals: beyond
-    that the fit is undetermined (and would take long to find out).
-    """
-
-    def excess(order: int) -> tuple[int, int]:
-        k, r, l = len(basis) + 1, data.n_inputs, data.n_outputs
-        layout = LpvModel(
-            np.zeros((k, order, order)),
-            np.zeros((k, order, r)),
-            np.zeros((k, l, order)),
-            basis=basis,
-        )
-        free = int(free_mask(layout, fixed).sum())
-        return free, free - order * order - 2 * data.n_residuals
-
-    free, over = excess(n)
-    if over > 0:
-        # the excess grows with the order: bisect for the largest order without one
-        limit, above = 0, n
-        while above - limit > 1:
-            mid = (limit + above) // 2
-            limit, above = (mid, above) if excess(mid)[1] <= 0 else (limit, mid)
-        raise ValueError(
-            f"order: {n} states with {len(basis)} basis functions give {free} free parameters; "
-            f"less the {n * n} of the state coordinates that is more than the "
-            f"{2 * data.n_residuals} real equations of the data's {data.n_residuals} complex "
-            f"residuals (at most order {limit})"
-        )
 
 
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
@@ -299,6 +290,8 @@ def identify(
     tolerance: float = 0.1,
     settings: L21Settings | None = None,
     progress: Progress | None = None,
+    stable: bool = False,
+    refit: bool = True,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
@@ -317,6 +310,9 @@ def identify(
        ``validation`` data, the simplest model whose validation V_NLS is
        within ``tolerance`` of the best; without, the knee of the
        accuracy-versus-number-of-groups curve.
+    5. With ``refit``, the chosen model refitted on its support (dropped
+       groups fixed at zero), its parameter covariance, and the stability
+       of its frozen models over the scheduling range.
 
     Parameters
     ----------
@@ -348,6 +344,19 @@ def identify(
     progress : callable, optional
         Called with a short message at every stage and every fit on the
         path (the same messages go to the ``lpvid`` logger at INFO).
+    stable : bool
+        Keep every frozen model on the scheduling range (the basis domain,
+        else the data's range) stable: each model of the path (and the
+        unregularised one) that is not is replaced by its refit on its
+        support with stability kept, from the model made stable
+        (:func:`lpvid.trust.enforce.stabilised`); the choice is then among
+        stable models. (The l2,1 fits themselves run unconstrained: at an
+        active stability constraint, rejected cone steps would stop their
+        simplification.)
+    refit : bool
+        Refit the chosen model by Levenberg-Marquardt with its dropped
+        groups fixed at zero (removes the shrinkage of the l2,1 penalty);
+        :attr:`IdentifyResult.model` is then the refitted model.
 
     Returns
     -------
@@ -358,8 +367,8 @@ def identify(
     ConvergenceWarning
         When the unregularised fit or a fit on the path stops at its
         iteration limit with its objective still falling (the entry's
-        ``converged`` is then False), and when the chosen model is unstable
-        between the scheduling points.
+        ``converged`` is then False), and when the chosen model has unstable
+        frozen models on the scheduling range.
 
     Raises
     ------
@@ -387,7 +396,7 @@ def identify(
         raise ValueError(
             f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
         )
-    _check_order(n, basis, data, fixed)
+    check_order(n, basis, data, fixed)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
@@ -412,6 +421,9 @@ def identify(
         dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
         state = ("" if c.stable else ", unstable") + dropped
         _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
+    p_range = identify_range(start.start, data)
+    if stable:
+        nls = stable_fit(nls, data, fixed, l21.threshold, p_range)
     timings["nls_s"] = nls.timings["total_s"]
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
@@ -424,7 +436,8 @@ def identify(
         r = raise_if_interrupted(fit_l21(current, data, g, l21, fixed, warn=False))
         results.append(r)
         current = r.model
-        entries.append(_entry(r.gamma, r, data, validation, l21.threshold))
+        kept = stable_fit(r, data, fixed, l21.threshold, p_range) if stable else r
+        entries.append(_entry(r.gamma, kept, data, validation, l21.threshold))
         warn_if_unconverged(r, f"the l2,1 fit at gamma = {r.gamma:g}", stacklevel=2)
         _say(
             progress,
@@ -435,16 +448,14 @@ def identify(
     path = PathResult(results)
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)
-    if not frozen_stable(entries[chosen].model, between_points(data.p)):
-        warnings.warn(
-            "the chosen model has unstable frozen models between the scheduling points "
-            "(checked at 7 values between every two neighbouring points)",
-            ConvergenceWarning,
-            stacklevel=2,
-        )
+    e = entries[chosen]
+    done = finish(e.model, e.gamma, data, fixed, l21.threshold, refit, stable, p_range)
+    refit_entry = (
+        None if done.refit is None else _entry(e.gamma, done.refit, data, validation, l21.threshold)
+    )
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(
-        model=entries[chosen].model,
+        model=done.model,
         chosen=chosen,
         reason=reason,
         entries=entries,
@@ -458,6 +469,10 @@ def identify(
         data=data,
         validation=validation,
         timings=timings,
+        refit=done.refit,
+        refit_entry=refit_entry,
+        covariance=done.covariance,
+        stability=done.stability,
     )
 
 

@@ -22,6 +22,7 @@ __all__ = [
     "between_points",
     "model_range",
     "propagation_order",
+    "range_pairs",
     "scheduling_range",
     "unit_scaled",
 ]
@@ -31,6 +32,41 @@ def as_rows(p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
     """Scheduling values as an ``(N, Np)`` array (a 1-D array is one parameter)."""
     arr = real_array(p, name, ndim=(1, 2))
     return arr.reshape(arr.shape[0], -1)
+
+
+def range_pairs(value: Any, n_params: int | None = None, name: str = "p_range") -> list[Any]:
+    """A scheduling range in lpvid's convention as a list of ``(lo, hi)`` pairs, checked.
+
+    Parameters
+    ----------
+    value : (lo, hi) or sequence of (lo, hi)
+        The range, one pair per parameter, every pair with ``lo < hi``.
+    n_params : int, optional
+        The number of scheduling parameters expected.
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    list of (float, float)
+
+    Examples
+    --------
+    >>> from lpvid.schedule import range_pairs
+    >>> range_pairs((0, 1))
+    [(0.0, 1.0)]
+
+    """
+    arr = real_array(value, name)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected (lo, hi) or a list of such pairs, got {value!r}")
+    if np.any(arr[:, 1] <= arr[:, 0]):
+        raise ValueError(f"{name}: every pair needs lo < hi, got {value!r}")
+    if n_params is not None and arr.shape[0] != n_params:
+        raise ValueError(f"{name}: {arr.shape[0]} pairs given for {n_params} scheduling parameters")
+    return [(float(lo), float(hi)) for lo, hi in arr]
 
 
 def scheduling_range(p: ArrayLike, name: str = "p") -> Any:

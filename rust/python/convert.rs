@@ -9,7 +9,9 @@ use pyo3::prelude::*;
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {
-            Error::InvalidArgument { .. } => PyValueError::new_err(e.to_string()),
+            Error::InvalidArgument { .. } | Error::Unstable { .. } => {
+                PyValueError::new_err(e.to_string())
+            }
             Error::Singular { .. } | Error::Overflow { .. } => {
                 super::SingularModelError::new_err(e.to_string())
             }

@@ -5,6 +5,7 @@ mod convert;
 mod fit_py;
 mod problem_py;
 mod simulate_py;
+mod trust_py;
 
 use pyo3::prelude::*;
 
@@ -29,5 +30,6 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     problem_py::register(m)?;
     fit_py::register(m)?;
     simulate_py::register(m)?;
+    trust_py::register(m)?;
     Ok(())
 }
