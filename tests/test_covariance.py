@@ -6,13 +6,13 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 
 import lpvid
 from lpvid import _core
 from lpvid.cost import gauss_newton
 from lpvid.data import z_points
 from lpvid.similarity import free_similarity_directions
+from lpvid.testing import random_lpv
 from lpvid.trust.covariance import _lti_index, band_radius, pseudo_inverse
 
 BAND = band_radius(0.95)
@@ -46,8 +46,13 @@ def test_band_radius():
     rng = np.random.default_rng(0)
     e = (rng.standard_normal(200_000) + 1j * rng.standard_normal(200_000)) / np.sqrt(2)
     assert np.mean(np.abs(e) <= band_radius(0.9)) == pytest.approx(0.9, abs=0.005)
-    for bad in (0.0, 1.0, 1.5, -0.1):
-        with pytest.raises(ValueError, match="level"):
+    for bad, why in [
+        (0.0, "expected a finite number > 0"),
+        (1.0, r"expected a probability in \(0, 1\)"),
+        (1.5, r"expected a probability in \(0, 1\)"),
+        (-0.1, "expected a finite number > 0"),
+    ]:
+        with pytest.raises(ValueError, match=f"^level: {why}"):
             band_radius(bad)
 
 

@@ -71,15 +71,24 @@ def test_fit_l21_keeps_stability(peaked):
 
 
 def test_unstable_start_is_refused(peaked):
-    with pytest.raises(ValueError, match="stable=True needs a stable start.*unstable"):
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, but .* at p = 0 is unstable",
+    ):
         lpvid.fit_nls(_start(1.01), peaked, FIXED, stable=True)
-    with pytest.raises(ValueError, match="stable start"):
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, .* \(stability margin -0\.01",
+    ):
         lpvid.fit_l21(_start(1.01), peaked, 1e-3, fixed=FIXED, stable=True)
-    with pytest.raises(ValueError, match="closer to the stability boundary"):
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, .* closer to the stability boundary",
+    ):
         lpvid.fit_nls(_start(1 - STABLE_TOL / 2), peaked, FIXED, stable=True)
-    with pytest.raises(ValueError, match="outside the basis domain"):
+    with pytest.raises(ValueError, match=r"^p_range: \(0, 2\) reaches outside the basis domain"):
         lpvid.fit_nls(_start(), peaked, FIXED, stable=True, p_range=(0.0, 2.0))
-    with pytest.raises(TypeError, match="stable"):
+    with pytest.raises(TypeError, match=r"^stable: expected True or False, got str"):
         lpvid.fit_nls(_start(), peaked, FIXED, stable="yes")
 
 

@@ -65,7 +65,8 @@ def npz_arrays(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The arrays of a ``.npz`` file (no pickles), or a ValueError naming it."""
     p = Path(path)
     try:
-        with np.load(p, allow_pickle=False) as f:
+        # opened here: np.load leaves a file it opened open when it is no zip file
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as f:
             return {k: f[k] for k in f.files}
     except Exception as exc:
         raise ValueError(

@@ -351,18 +351,18 @@ class FrfData:
         if missing:
             raise ValueError(f"path: {p.name} lacks the variables {', '.join(missing)}")
         G = np.asarray(raw["G"])
-        p_val = np.asarray(raw["p"], dtype=float)
-        freqs = np.asarray(raw["freqs_hz"], dtype=float).ravel()
+        p_val = real_array(raw["p"], "p")
+        freqs = real_array(raw["freqs_hz"], "freqs_hz").ravel()
         if suffix == ".mat":
             # MATLAB stores vectors as 1 x N matrices.
             if p_val.ndim == 2 and 1 in p_val.shape and G.shape[0] == p_val.size:
                 p_val = p_val.ravel()
             if G.ndim == 4 and G.shape[0] == 1 and p_val.size == 1:
                 p_val = p_val.ravel()
-        ts = raw.get("Ts")
-        ts_val = (
-            None if ts is None or np.asarray(ts).size == 0 else float(np.asarray(ts).ravel()[0])
-        )
+        ts = None if raw.get("Ts") is None else real_array(raw["Ts"], "Ts")
+        if ts is not None and ts.size > 1:
+            raise ValueError(f"Ts: expected one number (or none), got shape {ts.shape}")
+        ts_val = None if ts is None or ts.size == 0 else float(ts.ravel()[0])
         sigma = raw.get("sigma")
         return cls(p_val, freqs, G, sigma, ts_val)
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid import _core, _simulate
+from lpvid import _core, _simulate, modelfile
 from lpvid._checks import real_array, sample_time
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
@@ -380,23 +380,26 @@ class LpvModel:
         pathlib.Path
 
         """
-        from lpvid.modelfile import save_model
-
-        return save_model(self, path)
+        return modelfile.save_model(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LpvModel:
-        """Read a model written by :meth:`save`.
+        """Read a model file: what :meth:`save` writes.
+
+        A ``.mat`` file is read from its arrays (``A``, ``B``, ``C``, ``D``,
+        ``Ts``, the basis variables, ``p_range``); when it holds lpvid's own
+        copy of the model (``lpvid_model``, as :meth:`save` writes it), every
+        array must equal that copy to the last bit (see :mod:`lpvid.modelfile`).
 
         Raises
         ------
         ValueError
-            When the file is damaged, of another format or of another version.
+            When the file is damaged, of another format or of another
+            version, or a ``.mat`` file's arrays differ from its embedded
+            copy (the message names the variables that differ).
 
         """
-        from lpvid.modelfile import load_model
-
-        return load_model(path)
+        return modelfile.load_model(path, cls)
 
     def to_control(self, p: ArrayLike) -> Any:
         """The frozen model at ``p`` as a python-control ``StateSpace``.

@@ -18,6 +18,7 @@ import numpy as np
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
+from lpvid.capacity import check_order
 from lpvid.cost import vnls
 from lpvid.data import FrfData
 from lpvid.errors import logger
@@ -220,12 +221,12 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
         return None
     if not isinstance(validation, FrfData):
         raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
-    if (validation.n_outputs, validation.n_inputs, validation.n_params) != (
-        data.n_outputs,
-        data.n_inputs,
-        data.n_params,
-    ):
-        raise ValueError("validation: outputs, inputs or scheduling parameters differ from data's")
+
+    def sizes(d: FrfData) -> str:
+        return f"{d.n_outputs} outputs x {d.n_inputs} inputs, {d.n_params} scheduling parameter(s)"
+
+    if sizes(validation) != sizes(data):
+        raise ValueError(f"validation: has {sizes(validation)}; the data have {sizes(data)}")
     if not same_sample_time(validation.Ts, data.Ts):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
@@ -391,6 +392,11 @@ def identify(
             f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
             f"points, the data have {data.n_points}"
         )
+    if basis.n_params != data.n_params:
+        raise ValueError(
+            f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
+        )
+    check_order(n, basis, data, fixed)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
