@@ -23,6 +23,29 @@ pub enum Error {
         /// Index of the frequency line.
         line: usize,
     },
+    /// The frequency response is not finite at one (point, frequency) pair
+    /// although `zI - A(p)` could be inverted: it overflowed the range of
+    /// floating point (a pole very near the evaluation point, or huge
+    /// entries).
+    #[error(
+        "the frequency response overflowed (is not finite) at scheduling point {point}, \
+         frequency line {line}"
+    )]
+    Overflow {
+        /// Index of the scheduling point.
+        point: usize,
+        /// Index of the frequency line.
+        line: usize,
+    },
+    /// A frozen model on the scheduling range is unstable (or closer to the
+    /// stability boundary than asked): a fit with stability kept refuses it.
+    #[error("the frozen model at check point {point} is unstable (stability margin {margin:.3e})")]
+    Unstable {
+        /// Index of the check point.
+        point: usize,
+        /// Its stability margin (see `stable::margin`).
+        margin: f64,
+    },
     /// A linear-algebra or cone-solver failure that is not the user's input.
     #[error("numerical failure: {0}")]
     Numerical(String),

@@ -2,6 +2,7 @@
 //! outcome of a fit, the damping rule, and the monitor through which a
 //! caller follows progress and stops a run.
 
+use crate::error::{invalid, Result};
 use std::time::Instant;
 
 /// Which kind of step an iteration computed.
@@ -199,6 +200,22 @@ impl Damping {
     /// Whether the damping has grown past any use.
     pub fn exhausted(&self) -> bool {
         self.mu.is_nan() || self.mu >= MAX_DAMPING
+    }
+}
+
+/// Check that V_NLS at the start of a fit is finite: a fit from a point
+/// where it is not cannot decrease it, and would return it.
+pub(crate) fn check_start(vnls: f64) -> Result<()> {
+    if vnls.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(
+            "model",
+            format!(
+                "V_NLS at the start is not finite ({vnls}): the start model's response \
+                 overflows at the data's points; start from another model"
+            ),
+        ))
     }
 }
 

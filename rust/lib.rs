@@ -19,9 +19,11 @@ pub mod lti;
 pub mod objective;
 pub mod problem;
 pub mod response;
+pub mod sensitivity;
 pub mod simulate;
 pub mod socp;
 pub mod sum;
+pub mod stable;
 #[doc(hidden)]
 pub mod testing;
 pub mod time;
@@ -40,3 +42,4 @@ pub use problem::Problem;
 pub use response::frequency_response;
 pub use sum::Sum;
 pub use time::{InitialState, Record, TimeProblem};
+pub use stable::{FrozenRange, Stable};

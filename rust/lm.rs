@@ -6,7 +6,9 @@
 
 use crate::dense::{cholesky, cholesky_solve};
 use crate::error::{invalid, Result};
-use crate::fit::{norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop};
+use crate::fit::{
+    check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
+};
 use crate::layout::FreeSet;
 use crate::objective::{GaussNewton, Objective};
 use faer::Mat;
@@ -88,6 +90,10 @@ pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Option<Vec<f64>> {
 }
 
 /// Predicted decrease of V_NLS for step `d`: `-(g^T d + d^T J^T J d)`.
+///
+/// Written out rather than with faer's product: faer sums in another order,
+/// and the last bits of the gain ratio steer the damping, so the fits'
+/// results would move (1e-7 relative in the gantry demo's V_NLS).
 pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
     let m = gn.dim();
     let gd: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
@@ -100,6 +106,9 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
 }
 
 /// Levenberg-Marquardt from `theta0` over the free parameters.
+///
+/// Fails ([`crate::Error::InvalidArgument`] named `model`) when V_NLS at
+/// `theta0` is not finite.
 pub fn levenberg_marquardt(
     problem: &dyn Objective,
     theta0: &[f64],
@@ -111,6 +120,7 @@ pub fn levenberg_marquardt(
     let start = Instant::now();
     let mut theta = theta0.to_vec();
     let mut gn = problem.gauss_newton(&theta, free)?;
+    check_start(gn.vnls)?;
     let mut history = Vec::new();
     let finish = |theta: Vec<f64>, vnls: f64, history: Vec<Iteration>, stop: Stop| Fit {
         theta,

@@ -36,6 +36,10 @@ pub fn with_constant(basis: &[f64], n_points: usize, nb: usize) -> Result<Vec<f6
 /// Frequency response `C (zI - A)^-1 B + D` of the LPV model at every
 /// (point, line) pair, `(N, F, l, r)` row-major. `basis` holds the `N x Nb`
 /// basis values `psi_1..psi_Nb` at the points.
+///
+/// Fails with [`Error::Singular`] where `zI - A(p)` cannot be inverted and
+/// with [`Error::Overflow`] where the response is not finite: never returns
+/// NaN or Inf.
 pub fn frequency_response(
     shape: &Shape,
     theta: &[f64],
@@ -66,7 +70,11 @@ pub fn frequency_response(
                 for (lane, k) in (first..end).enumerate() {
                     for j in 0..l {
                         for c in 0..r {
-                            chunk[(k * l + j) * r + c] = res.g[j + c * l].lane(lane);
+                            let g = res.g[j + c * l].lane(lane);
+                            if !g.is_finite() {
+                                return Err(Error::Overflow { point: q, line: k });
+                            }
+                            chunk[(k * l + j) * r + c] = g;
                         }
                     }
                 }

@@ -13,8 +13,6 @@ from lpvid.datasets import STAGE
 from lpvid.datasets.flexible_gantry import _gantry_mechanics
 from lpvid.datasets.positioning import _stage_parameters
 
-control = pytest.importorskip("control")
-
 MAKERS = {"gantry": lpvid.datasets.gantry, "stage": lpvid.datasets.positioning_stage}
 
 
@@ -146,6 +144,7 @@ def test_stage_continuous_frf_is_the_equations_of_motion():
     ("make", "Ts"), [(lpvid.datasets.gantry, 5e-4), (lpvid.datasets.positioning_stage, 1e-3)]
 )
 def test_discrete_frf_is_the_zoh_sampled_physics(make, Ts):
+    control = pytest.importorskip("control")
     ds = make(snr_db=None, Ts=Ts)
     assert ds.Ts == Ts
     for data in (ds.identification, ds.validation):
@@ -296,31 +295,35 @@ def test_datasets_save_and_load(tmp_path):
 # ---------------------------------------------------------------- bad input
 @pytest.mark.parametrize("make", MAKERS.values(), ids=MAKERS.keys())
 def test_bad_arguments_name_themselves(make):
-    with pytest.raises(ValueError, match="seed"):
+    with pytest.raises(ValueError, match=r"^seed: expected an integer >= 0"):
         make(seed=-1)
-    with pytest.raises(TypeError, match="seed"):
+    with pytest.raises(TypeError, match=r"^seed: expected an integer, got float"):
         make(seed=1.5)
-    with pytest.raises(ValueError, match="n_lines"):
+    with pytest.raises(ValueError, match=r"^n_lines: expected an integer >= 1"):
         make(n_lines=0)
-    with pytest.raises(TypeError, match="snr_db"):
+    with pytest.raises(TypeError, match=r"^snr_db: expected a number or None, got str"):
         make(snr_db="40")
-    with pytest.raises(ValueError, match="snr_db"):
+    with pytest.raises(
+        ValueError, match=r"^snr_db: expected a finite number, inf or None, got nan"
+    ):
         make(snr_db=math.nan)
-    with pytest.raises(ValueError, match="Ts"):
+    with pytest.raises(
+        ValueError, match=r"^Ts: the band reaches \d+ Hz, above the Nyquist frequency"
+    ):
         make(Ts=0.02)
-    with pytest.raises(ValueError, match="Ts"):
+    with pytest.raises(ValueError, match=r"^Ts: expected a finite number > 0"):
         make(Ts=-1e-3)
 
 
 def test_true_system_refuses_impossible_scheduling():
     gantry, stage = lpvid.datasets.gantry(), lpvid.datasets.positioning_stage()
-    with pytest.raises(ValueError, match="p"):
+    with pytest.raises(ValueError, match=r"^p: the tube side must exceed twice the wall"):
         gantry.true_system(3.0)  # thinner than two walls
-    with pytest.raises(ValueError, match="p"):
+    with pytest.raises(ValueError, match=r"^p: the beam's free length .* must be at least 0.05 m"):
         stage.true_system(-0.58)  # beam shorter than 5 cm
-    with pytest.raises(ValueError, match="p"):
+    with pytest.raises(ValueError, match=r"^p: expected a finite scheduling value"):
         gantry.true_system(math.nan)
-    with pytest.raises(TypeError, match="p"):
+    with pytest.raises(TypeError, match=r"^p: expected one real scheduling value"):
         gantry.true_system([24.0, 30.0])
     # a one-element array is one value
     A1, A2 = gantry.true_system(np.array([30.0]))[0], gantry.true_system(30)[0]

@@ -85,7 +85,9 @@ def test_model_at_unseen_scheduling_values_is_close_to_the_truth(identified):
     for p in (0.15, 0.5, 0.85):
         true = system.frf(f, p)
         err = np.abs(result.model.frf(f, p) - true)
-        assert np.max(err) < 1e-3 * np.max(np.abs(true)), p  # seen: 1e-4
+        # seen: 1.3e-4 at p = 0.15, 6e-5 and 9e-5 at 0.5 and 0.85; a model that
+        # misses a mode or its motion by a percent is off by far more
+        assert np.max(err) < 3e-4 * np.max(np.abs(true)), p
 
 
 def test_time_domain_along_a_varying_scheduling_trajectory(identified):
@@ -97,4 +99,4 @@ def test_time_domain_along_a_varying_scheduling_trajectory(identified):
     y_true = system.simulate(u, p)
     y_model = result.model.simulate(u, p)
     rel = np.sqrt(np.mean((y_model - y_true) ** 2) / np.mean(y_true**2))
-    assert rel < 2e-3  # seen: 7e-5
+    assert rel < 2e-4  # seen: 6.6e-5: three times that

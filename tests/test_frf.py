@@ -2,16 +2,15 @@
 
 import numpy as np
 import pytest
-from conftest import direct_frf, random_lpv
 
 import lpvid
-
-control = pytest.importorskip("control")
+from lpvid.testing import direct_frf, random_lpv
 
 
 @pytest.mark.parametrize("Ts", [0.01, None])
 @pytest.mark.parametrize("n,r,l,nb", [(1, 1, 1, 0), (3, 2, 2, 2), (6, 1, 2, 4), (5, 3, 1, 1)])
 def test_frf_matches_python_control(rng, Ts, n, r, l, nb):
+    control = pytest.importorskip("control")
     model = random_lpv(rng, n, r, l, nb, Ts=Ts)
     p = np.array([0.0, 0.35, 1.0])
     f = np.linspace(0.5, 45.0, 23)
@@ -42,8 +41,29 @@ def test_frf_of_a_scalar_point_and_frequency(rng):
 def test_pole_on_the_imaginary_axis_raises(rng):
     # A pure integrator evaluated at 0 Hz in continuous time.
     model = lpvid.LpvModel(np.zeros((1, 1)), np.ones((1, 1)), np.ones((1, 1)))
-    with pytest.raises(lpvid.SingularModelError, match="singular"):
+    with pytest.raises(
+        lpvid.SingularModelError,
+        match=r"^zI - A\(p\) is singular at scheduling point 0, frequency line 0",
+    ):
         model.frf([0.0, 1.0], [0.0])
+
+
+def test_overflowing_response_raises_with_point_and_line():
+    # |G| ~ 1e320 at the second point (p = 1) only: B(p) = 1e160 p.
+    model = lpvid.LpvModel(
+        [[[0.5]], [[0.0]]],
+        [[[0.0]], [[1e160]]],
+        [[[1e160]], [[0.0]]],
+        [[[0.0]], [[0.0]]],
+        lpvid.Polynomial(1),
+        Ts=1.0,
+    )
+    assert np.all(np.isfinite(model.frf([0.1, 0.2], [0.0])))
+    with pytest.raises(
+        lpvid.SingularModelError,
+        match=r"^the frequency response overflowed .* at scheduling point 1, frequency line 0",
+    ):
+        model.frf([0.1, 0.2], [0.0, 1.0])
 
 
 def test_at_interpolates_the_coefficients(rng):

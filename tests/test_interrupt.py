@@ -17,18 +17,32 @@ import pytest
 
 import lpvid
 
+FINISHED = threading.Event()  # set by a test once its run has returned
+
 
 def sigint_when(event: threading.Event, delay: float) -> threading.Thread:
-    """Send SIGINT to this process ``delay`` seconds after ``event`` is set."""
+    """Send SIGINT to this process ``delay`` seconds after ``event`` is set.
+
+    Not once the run under test has returned (``FINISHED``): a late signal
+    would land in another test.
+    """
+    FINISHED.clear()
 
     def run() -> None:
         if event.wait(timeout=60):
             threading.Event().wait(delay)
-            os.kill(os.getpid(), signal.SIGINT)
+            if not FINISHED.is_set():
+                os.kill(os.getpid(), signal.SIGINT)
 
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
     return thread
+
+
+# Fits that only a signal ends: no tolerance is ever met.
+ENDLESS = dict(
+    max_outer=1000, max_inner=1000, ftol=0.0, dphi_min=0.0, dvnls_min=0.0, dtheta_min=0.0
+)
 
 
 @pytest.fixture(scope="module")
@@ -59,6 +73,7 @@ def test_ctrl_c_in_fit_nls_returns_the_best_model_so_far(python_sigint, gantry):
     go = threading.Event()
     sigint_when(go, 0.0)
     fit = lpvid.fit_nls(start, data, max_iter=100000, xtol=0, ftol=0, callback=started(go))
+    FINISHED.set()
     assert fit.interrupted and fit.stop == "keyboard_interrupt"
     assert "Ctrl-C" in fit.message
     assert fit.vnls <= lpvid.vnls(start, data)
@@ -73,7 +88,8 @@ def test_ctrl_c_in_fit_l21_without_a_callback(python_sigint, gantry):
     go = threading.Event()
     sigint_when(go, 0.3)
     go.set()  # no callback: the core alone notices the signal
-    reg = lpvid.fit_l21(start, data, 1e-3, max_outer=1000, max_inner=1000, ftol=0.0, dphi_min=0.0)
+    reg = lpvid.fit_l21(start, data, 1e-3, **ENDLESS)
+    FINISHED.set()
     assert reg.stop == "keyboard_interrupt" and reg.interrupted
     assert reg.n_iter < 1000
     assert reg.vnls == pytest.approx(lpvid.vnls(reg.model, data), rel=1e-12)
@@ -87,13 +103,10 @@ def test_ctrl_c_in_l21_path_stops_the_sweep(python_sigint, gantry):
         start,
         ds.identification,
         [1e-1, 1e-2, 1e-3],
-        max_outer=1000,
-        max_inner=1000,
-        ftol=0.0,
-        dphi_min=0.0,
-        dvnls_min=0.0,
         callback=started(go),
+        **ENDLESS,
     )
+    FINISHED.set()
     assert len(path) < 3
     assert path[-1].stop == "keyboard_interrupt"
     assert all(r.stop != "keyboard_interrupt" for r in path.results[:-1])
@@ -104,10 +117,13 @@ def test_ctrl_c_in_identify_stops_the_whole_run(python_sigint, gantry):
     go = threading.Event()
     sigint_when(go, 0.5)
     go.set()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
-        with pytest.raises(KeyboardInterrupt):
-            lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+            with pytest.raises(KeyboardInterrupt):
+                lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
+    finally:
+        FINISHED.set()
 
 
 def test_ctrl_c_in_the_demo_exits_130_and_writes_nothing(tmp_path):

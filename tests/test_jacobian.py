@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from conftest import noisy_data, random_lpv
 
 import lpvid
 from lpvid.cost import gauss_newton
+from lpvid.testing import noisy_data, random_lpv
 
 
 def real_residual(model, data, theta):

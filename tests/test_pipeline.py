@@ -1,14 +1,15 @@
 """identify(), reports, model files and the command line, end to end."""
 
 import json
-import re
 import warnings
 
 import numpy as np
 import pytest
+from scipy.io import loadmat
 
 import lpvid
 from lpvid.cli import main
+from lpvid.testing import noisy_data, random_lpv
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,17 @@ def test_demo_writes_its_files(demo):
         assert (out / name).is_file(), name
     numbers = json.loads((out / "result.json").read_text())
     model = lpvid.LpvModel.load(out / "model.json")
-    assert lpvid.LpvModel.load(out / "model.mat") == model
+    # model.mat holds the same numbers in its MATLAB arrays (read here without
+    # lpvid), and lpvid reads them back from there
+    raw = loadmat(out / "model.mat")
+    for name, arr in model.matrices().items():
+        np.testing.assert_array_equal(np.moveaxis(raw[name], -1, 0), arr)
+    np.testing.assert_array_equal(raw["basis_domain"], model.basis.domain)
+    assert raw["Ts"].item() == model.Ts
+    from_mat = lpvid.LpvModel.load(out / "model.mat")
+    for name, arr in model.matrices().items():
+        np.testing.assert_array_equal(getattr(from_mat, name), arr)
+    assert from_mat.basis == model.basis and from_mat.p_range == model.p_range
     ds = lpvid.datasets.gantry()
     # the numbers in the report are those of the model written
     assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, ds.identification), rel=1e-12)
@@ -76,14 +87,18 @@ def test_demo_writes_its_files(demo):
 def test_demo_model_is_accurate_and_simpler(demo):
     _, out = demo
     n = json.loads((out / "result.json").read_text())
-    assert abs(n["vnls"] / n["noise_floor"] - 1) <= 0.1
-    assert n["validation_vnls"] <= 1.25 * n["validation_vnls_unregularised"]
+    # at the noise floor: three standard deviations, sqrt(M) each (seen: 17 below)
+    assert abs(n["vnls"] - n["noise_floor"]) <= 3 * np.sqrt(n["noise_floor"])
+    # the README: the chosen model validates better than the unregularised one
+    assert n["validation_vnls"] <= n["validation_vnls_unregularised"]
     assert n["groups_chosen"] < n["groups_smile"]
 
 
 def test_identify_result_is_consistent(gantry_result):
     ds, res = gantry_result
-    assert res.model is res.entries[res.chosen].model
+    # refit=True (the default): the chosen model refitted on its support
+    assert res.refit is not None and res.model is res.refit.model is res.final.model
+    assert res.final.n_groups == res.entry.n_groups
     assert res.entries[0].gamma == 0 and len(res.entries) == 1 + len(res.path)
     for e in res.entries:
         assert e.vnls == pytest.approx(lpvid.vnls(e.model, ds.identification), rel=1e-12)
@@ -124,17 +139,76 @@ def test_identify_without_validation_takes_the_knee(gantry_result):
 def test_identify_bad_input(gantry_result):
     ds, _ = gantry_result
     data = ds.identification
-    with pytest.raises(TypeError, match="basis"):
+    with pytest.raises(TypeError, match=r"^basis: expected an lpvid basis"):
         lpvid.identify(data, 6, "poly")
-    with pytest.raises(ValueError, match="order"):
+    with pytest.raises(ValueError, match=r"^order: expected an integer >= 1"):
         lpvid.identify(data, 0, ds.basis)
-    with pytest.raises(ValueError, match="basis"):
+    with pytest.raises(
+        ValueError, match=r"^basis: 5 basis functions need at least 6 scheduling points"
+    ):
         lpvid.identify(data, 6, lpvid.Polynomial(5, domain=(24, 48)))
-    with pytest.raises(ValueError, match="gammas"):
+    with pytest.raises(ValueError, match=r"^gammas: needs at least one value, all > 0"):
         lpvid.identify(data, 6, ds.basis, gammas=[0.1, -1])
-    with pytest.raises(ValueError, match="validation"):
+    with pytest.raises(
+        ValueError,
+        match=r"^validation: has 1 outputs x 1 inputs, .*; the data have 2 outputs",
+    ):
         stage = lpvid.datasets.positioning_stage()
         lpvid.identify(data, 6, ds.basis, validation=stage.validation)
+
+
+def test_identify_continuous_time_with_d_fixed():
+    """A continuous-time system with A affine in p and D = 0, identified with D fixed."""
+    rng = np.random.default_rng(12345)
+    m = random_lpv(rng, n=2, r=1, l=2, nb=1, Ts=None)
+    B, C = m.B.copy(), m.C.copy()
+    B[1:], C[1:] = 0.0, 0.0
+    true = lpvid.LpvModel(m.A, B, C, np.zeros_like(m.D), m.basis, Ts=None)
+    f = np.logspace(-2, 1, 30)
+    data = noisy_data(true, np.linspace(0, 1, 4), f, rng, rel_noise=0.01)
+    val = noisy_data(true, np.array([0.2, 0.6, 0.9]), f, rng, rel_noise=0.01)
+    res = lpvid.identify(
+        data,
+        2,
+        lpvid.Polynomial(2, domain=(0, 1)),
+        validation=val,
+        fixed={"D": True},
+        gammas=[0.1, 0.01],
+    )
+    assert res.model.Ts is None
+    assert all(not np.any(e.model.D) for e in res.entries)  # D stays exactly zero
+    e, m_id, m_val = res.entry, data.n_residuals, val.n_residuals
+    # at the noise floor on the points and between them: 3 sigma of the floor
+    assert e.vnls <= m_id + 3 * np.sqrt(m_id)
+    assert e.validation_vnls <= m_val + 3 * np.sqrt(m_val)
+    # A depends on p; D has no group; simpler than the unregularised model
+    assert 1 in e.nonzero_groups["A"] and e.nonzero_groups["D"] == []
+    assert e.n_groups < res.entries[0].n_groups
+
+
+def test_identify_with_two_scheduling_parameters():
+    """A depends on p1 and p2 (affine), B, C, D constant; a 3 x 3 grid of points."""
+    rng = np.random.default_rng(2)
+    basis = lpvid.Polynomial(1, domain=[(0, 1), (0, 1)])
+    A = 0.1 * rng.normal(size=(3, 2, 2))
+    A[0] += 0.5 * np.eye(2)
+    B, C, D = np.zeros((3, 2, 1)), np.zeros((3, 1, 2)), np.zeros((3, 1, 1))
+    B[0], C[0], D[0] = rng.normal(size=(2, 1)), rng.normal(size=(1, 2)), 0.3
+    true = lpvid.LpvModel(A, B, C, D, basis, Ts=0.01)
+    grid = np.array([(a, b) for a in (0.0, 0.5, 1.0) for b in (0.0, 0.5, 1.0)])
+    f = np.linspace(1, 45, 25)
+    data = noisy_data(true, grid, f, rng, rel_noise=0.01)
+    val = noisy_data(true, np.array([[0.25, 0.75], [0.7, 0.3]]), f, rng, rel_noise=0.01)
+    res = lpvid.identify(data, 2, basis, validation=val, gammas=[0.1, 0.01])
+    assert res.model.basis.n_params == 2 and res.model.basis == basis
+    e, m_id, m_val = res.entry, data.n_residuals, val.n_residuals
+    assert e.vnls <= m_id + 3 * np.sqrt(m_id)
+    assert e.validation_vnls <= m_val + 3 * np.sqrt(m_val)
+    assert e.nonzero_groups == {"A": [1, 2], "B": [], "C": [], "D": []}
+    # the model between the grid points is the true one, to the noise level
+    between = np.array([[0.4, 0.6], [0.9, 0.1]])
+    err = res.model.frf(f, between) - true.frf(f, between)
+    assert np.max(np.abs(err)) <= 0.05 * np.max(np.abs(true.frf(f, between)))
 
 
 def test_report_without_figures(tmp_path, gantry_result):
@@ -169,38 +243,3 @@ def test_fit_command_end_to_end(small_files, capsys):
     assert numbers["vnls"] == pytest.approx(lpvid.vnls(model, data), rel=1e-12)
     assert f"{numbers['vnls']:.6g}" in printed
     assert model.basis == lpvid.Polynomial(4, domain=data.p_range)
-
-
-@pytest.mark.parametrize(
-    "argv, pattern",
-    [
-        (["fit"], "required"),
-        (["fit", "missing.npz", "--order", "6", "--out", "x"], "no such file"),
-        (["fit", "{id}", "--order", "6", "--basis", "cubic", "--out", "x"], "--basis"),
-        (["fit", "{id}", "--order", "0", "--out", "x"], "--order"),
-        (["fit", "{id}", "--order", "six", "--out", "x"], "--order"),
-        (["fit", "{id}", "--order", "6", "--fix", "E", "--out", "x"], "--fix"),
-        (["fit", "{id}", "--order", "999", "--out", "x"], "order"),
-        (["demo", "--data", "nope"], "--data"),
-        (["frobnicate"], "invalid choice"),
-    ],
-)
-def test_cli_misuse_is_one_line_and_exit_code_2(small_files, capsys, argv, pattern, tmp_path):
-    argv = [a.replace("{id}", str(small_files / "id.npz")) for a in argv]
-    argv = [str(tmp_path / "x") if a == "x" else a for a in argv]
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    err = capsys.readouterr().err
-    assert code == 2
-    assert len(err.strip().splitlines()) == 1, err
-    assert re.search(re.escape(pattern), err), err
-
-
-def test_fit_help_speaks_to_engineers(capsys):
-    with pytest.raises(SystemExit):
-        main(["fit", "--help"])
-    text = capsys.readouterr().out
-    for word in ("--order", "--basis", "--validation", "scheduling", "gamma", "sigma"):
-        assert word in text

@@ -4,7 +4,6 @@ import json
 
 import numpy as np
 import pytest
-from conftest import random_lpv
 from systems import (
     GANTRY_FREQS,
     GANTRY_MID,
@@ -21,6 +20,7 @@ import lpvid
 from lpvid.initial.coherent import CoherenceError
 from lpvid.initial.smile import FORMS
 from lpvid.schedule import propagation_order
+from lpvid.testing import random_lpv
 
 GANTRY_BASIS = lpvid.Polynomial(4, domain=(24.0, 48.0))
 
@@ -114,11 +114,12 @@ def test_gantry_like_between_the_points(rng):
         assert np.all(rel[1] < 1e-6)
         assert cands[form].info["constant_groups"] == 4
     # auto keeps the candidate with the smallest leave-one-out error, here a modal one,
-    # which is also the best between the points.
+    # which is also the best between the points (modal_input 5.3e-5 against modal
+    # 7.3e-5; the forms do not depend on the local coordinates, so this is exact).
     auto = lpvid.smile(gantry_locals(rng), GANTRY_P, GANTRY_BASIS)
     assert auto.info["selected_by"] == "leave-one-out"
     assert auto.info["form"] in ("modal", "modal_input")
-    assert worst[auto.info["form"]] == pytest.approx(min(worst.values()), rel=0.5)
+    assert worst[auto.info["form"]] == min(worst.values())
 
 
 def test_coherent_forms_do_not_depend_on_the_local_coordinates():
@@ -211,7 +212,10 @@ def test_real_complex_transition_leaves_modal_out(rng):
     p = np.array([0.0, 0.3, 0.7, 1.0])
     locs = [lti(system(s)) for s in p]
     basis = lpvid.Polynomial(3, domain=(0, 1))
-    with pytest.raises(CoherenceError, match="real/complex"):
+    with pytest.raises(
+        CoherenceError,
+        match=r"^modal: the number of real poles and complex pole pairs changes .* real/complex",
+    ):
         lpvid.smile(locs, p, basis, form="modal")
     cands = lpvid.smile_candidates(locs, p, basis)
     assert "modal" not in cands and "observability" in cands
@@ -300,37 +304,49 @@ def test_least_squares_interpolation_when_points_outnumber_the_basis(rng):
 def test_bad_input_names_the_argument(rng):
     locs = gantry_locals(rng)
     basis = GANTRY_BASIS
-    with pytest.raises(ValueError, match="p: scheduling values must be distinct"):
+    with pytest.raises(
+        ValueError, match=r"^p: scheduling values must be distinct \(duplicate point \[30\.0\]\)"
+    ):
         lpvid.smile(locs, [24.0, 30.0, 30.0, 42.0, 48.0], basis)
-    with pytest.raises(ValueError, match="p: 4 scheduling values for 5"):
+    with pytest.raises(ValueError, match=r"^p: 4 scheduling values for 5 models"):
         lpvid.smile(locs, GANTRY_P[:4], basis)
-    with pytest.raises(ValueError, match="p: 4 points cannot determine the 5 coefficients"):
+    with pytest.raises(ValueError, match=r"^p: 4 points cannot determine the 5 coefficients"):
         lpvid.smile(locs[:4], GANTRY_P[:4], basis)
-    with pytest.raises(ValueError, match="p: required"):
+    with pytest.raises(ValueError, match=r"^p: required unless local_models is a LocalModels"):
         lpvid.smile(locs, None, basis)
-    with pytest.raises(ValueError, match="p: contains NaN"):
+    with pytest.raises(ValueError, match=r"^p: contains NaN or Inf"):
         lpvid.smile(locs, [24.0, np.nan, 36.0, 42.0, 48.0], basis)
-    with pytest.raises(ValueError, match="form: unknown"):
+    with pytest.raises(ValueError, match=r"^form: unknown coherent form 'balanced'"):
         lpvid.smile(locs, GANTRY_P, basis, form="balanced")
-    with pytest.raises(ValueError, match="forms: unknown"):
+    with pytest.raises(ValueError, match=r"^forms: unknown coherent form 'jordan'"):
         lpvid.smile_candidates(locs, GANTRY_P, basis, forms=["modal", "jordan"])
-    with pytest.raises(TypeError, match="basis"):
+    with pytest.raises(TypeError, match=r"^basis: expected an lpvid basis, got NoneType"):
         lpvid.smile(locs, GANTRY_P, None)
-    with pytest.raises(TypeError, match="local_models"):
+    with pytest.raises(
+        TypeError, match=r"^local_models: expected LocalModels or a list of LTI LpvModel, got"
+    ):
         lpvid.smile(locs[0], GANTRY_P, basis)
-    with pytest.raises(TypeError, match=r"local_models\[1\]"):
+    with pytest.raises(TypeError, match=r"^local_models\[1\]: expected an LpvModel, got str"):
         lpvid.smile([locs[0], "model", *locs[2:]], GANTRY_P, basis)
-    with pytest.raises(ValueError, match=r"local_models\[2\]: \(n, r, l\)"):
+    with pytest.raises(
+        ValueError, match=r"^local_models\[2\]: \(n, r, l\) = \(4, 1, 2\) differs from the first"
+    ):
         small = lti(scramble(gantry_like(36.0), rng))
         small = lpvid.LpvModel(small.A[0][:4, :4], small.B[0][:4], small.C[0][:, :4], small.D[0])
         lpvid.smile([*locs[:2], small, *locs[3:]], GANTRY_P, basis)
-    with pytest.raises(ValueError, match=r"local_models\[4\]: Ts"):
+    with pytest.raises(
+        ValueError, match=r"^local_models\[4\]: Ts=0.01 differs from the first model"
+    ):
         lpvid.smile([*locs[:4], lti(frozen(locs[4], 0.0), 0.01)], GANTRY_P, basis)
-    with pytest.raises(ValueError, match="Nb"):
+    with pytest.raises(
+        ValueError, match=r"^local_models\[4\]: expected an LTI model \(Nb = 0\), got Nb=1"
+    ):
         lpvid.smile([*locs[:4], random_lpv(rng, 6, 1, 2, 1, Ts=None)], GANTRY_P, basis)
-    with pytest.raises(ValueError, match="p: the basis takes 2"):
+    with pytest.raises(
+        ValueError, match=r"^p: the basis takes 2 scheduling parameter\(s\), got 5 per point"
+    ):
         lpvid.smile(locs, GANTRY_P, lpvid.Polynomial(1, domain=[(0, 1), (0, 1)]))
-    with pytest.raises(ValueError, match="basis: the basis functions are linearly dependent"):
+    with pytest.raises(ValueError, match=r"^basis: the basis functions are linearly dependent"):
         twice = lpvid.CustomBasis([lambda p: p, lambda p: 2 * p])
         lpvid.smile(locs, GANTRY_P, twice)
 

@@ -6,7 +6,8 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, initial, plots, readers, report
+from lpvid import datasets, initial, plots, readers, report, trust
+from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
 from lpvid.data import FrfData
@@ -33,13 +34,16 @@ from lpvid.settings import L21Settings
 from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls
 from lpvid.timedata import TimeData
 from lpvid.timefit import fit_time
-
-__version__ = "0.1.0"
+from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
+from lpvid.trust.covariance import covariance
+from lpvid.trust.refit import refit
+from lpvid.trust.stability import stability
 
 __all__ = [
     "Basis",
     "Consistency",
     "ConvergenceWarning",
+    "Covariance",
     "CustomBasis",
     "FitResult",
     "FrfData",
@@ -50,14 +54,17 @@ __all__ = [
     "Legendre",
     "LocalModels",
     "LpvModel",
+    "LyapunovCertificate",
     "Multisine",
     "PathResult",
     "Polynomial",
     "SingularModelError",
+    "StabilityReport",
     "TimeCost",
     "TimeData",
     "__version__",
     "consistency",
+    "covariance",
     "datasets",
     "estimate_frf",
     "fd_subspace",
@@ -76,11 +83,14 @@ __all__ = [
     "multisine",
     "plots",
     "readers",
+    "refit",
     "report",
     "residual",
     "smile",
     "smile_candidates",
+    "stability",
     "time_residual",
     "time_vnls",
+    "trust",
     "vnls",
 ]

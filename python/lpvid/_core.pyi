@@ -1,4 +1,8 @@
-"""Type stub of the compiled core (private)."""
+"""Type stub of the compiled core (private).
+
+Checked against the compiled module by ``python -m mypy.stubtest lpvid._core``
+(CI runs it).
+"""
 
 from collections.abc import Callable
 from typing import Any, final
@@ -6,6 +10,26 @@ from typing import Any, final
 import numpy as np
 from numpy.typing import NDArray
 from typing_extensions import Self
+
+__all__ = [
+    "__version__",
+    "SingularModelError",
+    "frequency_response",
+    "Problem",
+    "TimeProblem",
+    "SumProblem",
+    "cone_step",
+    "fit_nls",
+    "fit_l21",
+    "FrozenRange",
+    "lti_jacobian",
+    "stability_margin",
+    "l21_defaults",
+    "l21_path",
+    "simulate",
+]
+
+__version__: str
 
 class SingularModelError(ArithmeticError): ...
 
@@ -30,11 +54,12 @@ def simulate(
     x0: NDArray[np.float64],
     dt: float | None = None,
     states: bool = False,
-) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]: ...
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, int | None]: ...
 
+@final
 class Problem:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         n: int,
         r: int,
         l: int,
@@ -44,7 +69,7 @@ class Problem:
         g: NDArray[np.complex128],
         sigma: NDArray[np.float64],
         basis: NDArray[np.float64],
-    ) -> None: ...
+    ) -> Self: ...
     @property
     def n_residuals(self) -> int: ...
     def residual(self, theta: NDArray[np.float64]) -> NDArray[np.complex128]: ...
@@ -90,23 +115,55 @@ class SumProblem:
     ) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]: ...
 
 _AnyProblem = Problem | TimeProblem | SumProblem
-Settings = dict[str, float | int | str]
-Callback = Callable[[dict[str, Any]], Any] | None
+
+@final
+class FrozenRange:
+    def __new__(
+        cls,
+        nb: int,
+        basis: NDArray[np.float64],
+        n_points: int,
+        stride: int,
+        discrete: bool,
+        tol: float,
+    ) -> Self: ...
+    def __len__(self) -> int: ...
+    def margins(
+        self, n: int, r: int, l: int, theta: NDArray[np.float64]
+    ) -> NDArray[np.float64]: ...
+    def worst(self, n: int, r: int, l: int, theta: NDArray[np.float64]) -> tuple[int, float]: ...
+
+def lti_jacobian(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    theta: NDArray[np.float64],
+    basis: NDArray[np.float64],
+    n_points: int,
+    z: NDArray[np.complex128],
+) -> NDArray[np.complex128]: ...
+def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ...
+
+_Settings = dict[str, float | int | str]
+_Callback = Callable[[dict[str, Any]], Any] | None
 
 def fit_nls(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def fit_l21(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> dict[str, Any]: ...
 def l21_path(
     problem: _AnyProblem,
@@ -114,8 +171,9 @@ def l21_path(
     sup_norms: NDArray[np.float64],
     gammas: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
-    callback: Callback = None,
+    settings: _Settings,
+    callback: _Callback = None,
+    stable: FrozenRange | None = None,
 ) -> list[tuple[float, dict[str, Any]]]: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
@@ -123,6 +181,6 @@ def cone_step(
     theta: NDArray[np.float64],
     sup_norms: NDArray[np.float64],
     free: NDArray[np.bool_] | None,
-    settings: Settings,
+    settings: _Settings,
     mu: float,
 ) -> dict[str, Any]: ...

@@ -1,4 +1,4 @@
-"""Writing files whole or not at all."""
+"""Files: written whole or not at all, and read with one answer to damage."""
 
 from __future__ import annotations
 
@@ -6,7 +6,9 @@ import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
+
+import numpy as np
 
 
 def write_atomic(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None]) -> Path:
@@ -36,3 +38,37 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None
             pass
         raise
     return target
+
+
+def mat_variables(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The variables of a MATLAB file (``__``-names left out), or a ValueError naming it.
+
+    scipy answers a damaged file with many kinds of exception (IndexError,
+    EOFError, struct.error, ...); they all become one ValueError here, the
+    original chained.
+    """
+    from scipy.io import loadmat
+
+    p = Path(path)
+    try:
+        raw = loadmat(p)
+    except NotImplementedError as exc:  # scipy's answer to -v7.3 files
+        raise ValueError(f"{p.name}: a MATLAB -v7.3 (HDF5) file; save it with -v7") from exc
+    except Exception as exc:
+        raise ValueError(
+            f"{p.name}: not a readable .mat file ({type(exc).__name__}: {exc})"
+        ) from exc
+    return {k: v for k, v in raw.items() if not k.startswith("__")}
+
+
+def npz_arrays(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The arrays of a ``.npz`` file (no pickles), or a ValueError naming it."""
+    p = Path(path)
+    try:
+        # opened here: np.load leaves a file it opened open when it is no zip file
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as f:
+            return {k: f[k] for k in f.files}
+    except Exception as exc:
+        raise ValueError(
+            f"{p.name}: not a readable .npz file ({type(exc).__name__}: {exc})"
+        ) from exc

@@ -16,6 +16,7 @@ from numpy.polynomial import legendre as npleg
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array
+from lpvid.schedule import range_pairs
 
 __all__ = ["Basis", "Polynomial", "Legendre", "CustomBasis", "basis_from_dict"]
 
@@ -28,16 +29,7 @@ def _domains(domain: Any, n_params: int | None, required: bool) -> list[Domain] 
         if required:
             raise ValueError("domain: required, e.g. domain=(p_min, p_max)")
         return None
-    arr = real_array(domain, "domain")
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 2:
-        raise ValueError(f"domain: expected (lo, hi) or a list of such pairs, got {domain!r}")
-    if np.any(arr[:, 1] <= arr[:, 0]):
-        raise ValueError(f"domain: every pair needs lo < hi, got {domain!r}")
-    if n_params is not None and arr.shape[0] != n_params:
-        raise ValueError(f"domain: {arr.shape[0]} pairs given for {n_params} scheduling parameters")
-    return [(float(lo), float(hi)) for lo, hi in arr]
+    return range_pairs(domain, n_params, "domain")
 
 
 def _exponents(degree: int, n_params: int) -> list[tuple[int, ...]]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ from lpvid.data import FrfData
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
 
-__all__ = ["vnls", "residual", "gauss_newton", "build_problem", "check_compatible"]
+__all__ = ["vnls", "vnls_value", "residual", "gauss_newton", "build_problem", "check_compatible"]
 
 
 def check_compatible(model: LpvModel, data: FrfData) -> None:
@@ -64,8 +65,29 @@ def vnls(model: LpvModel, data: FrfData) -> float:
     Returns
     -------
     float
+        Finite, or ``inf`` with a ``RuntimeWarning`` when the sum overflows
+        (a model whose errors are beyond 1e154 sigma).
+
+    Raises
+    ------
+    SingularModelError
+        When a frozen model is singular at an evaluation point or its
+        response overflows.
 
     """
+    value = vnls_value(model, data)
+    if not np.isfinite(value):
+        warnings.warn(
+            f"vnls: V_NLS is not finite ({value}): the model's errors on these data are beyond "
+            "the range of float64",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return value
+
+
+def vnls_value(model: LpvModel, data: FrfData) -> float:
+    """:func:`vnls` without the warning: for callers that rank models and judge ``inf``."""
     return float(build_problem(model, data).vnls(model.theta))
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
-from lpvid._files import write_atomic
+from lpvid._files import mat_variables, npz_arrays, write_atomic
 from lpvid.readers import read_experiment
 from lpvid.schedule import scheduling_range
 
@@ -342,36 +342,27 @@ class FrfData:
         p = Path(path)
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            try:
-                with np.load(p, allow_pickle=False) as f:
-                    raw = {k: f[k] for k in f.files}
-            except (OSError, ValueError) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .npz file ({exc})") from exc
+            raw = _read(npz_arrays, p)
         elif suffix == ".mat":
-            from scipy.io import loadmat
-
-            try:
-                raw = {k: v for k, v in loadmat(p).items() if not k.startswith("__")}
-            except (OSError, ValueError, TypeError) as exc:
-                raise ValueError(f"path: {p.name} is not a readable .mat file ({exc})") from exc
+            raw = _read(mat_variables, p)
         else:
             raise ValueError(f"path: expected a .npz or .mat file, got {p.name!r}")
         missing = [k for k in ("p", "freqs_hz", "G") if k not in raw]
         if missing:
             raise ValueError(f"path: {p.name} lacks the variables {', '.join(missing)}")
         G = np.asarray(raw["G"])
-        p_val = np.asarray(raw["p"], dtype=float)
-        freqs = np.asarray(raw["freqs_hz"], dtype=float).ravel()
+        p_val = real_array(raw["p"], "p")
+        freqs = real_array(raw["freqs_hz"], "freqs_hz").ravel()
         if suffix == ".mat":
             # MATLAB stores vectors as 1 x N matrices.
             if p_val.ndim == 2 and 1 in p_val.shape and G.shape[0] == p_val.size:
                 p_val = p_val.ravel()
             if G.ndim == 4 and G.shape[0] == 1 and p_val.size == 1:
                 p_val = p_val.ravel()
-        ts = raw.get("Ts")
-        ts_val = (
-            None if ts is None or np.asarray(ts).size == 0 else float(np.asarray(ts).ravel()[0])
-        )
+        ts = None if raw.get("Ts") is None else real_array(raw["Ts"], "Ts")
+        if ts is not None and ts.size > 1:
+            raise ValueError(f"Ts: expected one number (or none), got shape {ts.shape}")
+        ts_val = None if ts is None or ts.size == 0 else float(ts.ravel()[0])
         sigma = raw.get("sigma")
         return cls(p_val, freqs, G, sigma, ts_val)
 
@@ -492,3 +483,10 @@ class FrfData:
             raise type(exc)(f"{Path(manifest).name}: {exc}") from exc
         data.provenance = exp.provenance
         return data
+
+
+def _read(reader: Any, path: Path) -> dict[str, Any]:
+    try:
+        return reader(path)
+    except ValueError as exc:
+        raise ValueError(f"path: {exc}") from exc

@@ -131,6 +131,8 @@ def fit_nls(
     callback: Callback | None = None,
     warn: bool = True,
     time_data: Any = None,
+    stable: bool = False,
+    p_range: Any = None,
 ) -> FitResult:
     """Minimise V_NLS by Levenberg-Marquardt (method.md (11)).
 
@@ -169,6 +171,13 @@ def fit_nls(
         Time records beside the FRF data: the fit then minimises V_NLS plus
         their output error (see :func:`lpvid.fit_time`), ``result.vnls``
         is that sum and ``result.noise_floor`` the sum of both floors.
+    stable : bool
+        Keep every frozen model on ``p_range`` stable: steps that leave the
+        stable set are refused (see :mod:`lpvid.trust.enforce`). The start
+        must be stable.
+    p_range : optional
+        Scheduling range for ``stable``; default the model's (its basis
+        domain), else the data's.
 
     Returns
     -------
@@ -177,15 +186,39 @@ def fit_nls(
     Raises
     ------
     ValueError
-        On bad arguments, or when V_NLS is not finite at the start.
+        On bad arguments, when V_NLS is not finite at the start, or with
+        ``stable=True`` when the start is not stable over the range.
     """
     settings = lm_settings(max_iter, xtol, ftol, gtol, lambda0)
     problem, floor = combined_problem(model, data, time_data)
-    raw = _core.fit_nls(problem, model.theta, free_mask(model, fixed), settings, _monitor(callback))
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    raw = _stable_run(
+        model,
+        stable,
+        _p_range_and_sup(model, data, p_range)[0] if stable else None,
+        lambda rng: _core.fit_nls(problem, model.theta, free, settings, monitor, rng),
+    )
     result = FitResult._from_core(raw, model, floor)
     if warn:
         warn_if_unconverged(result, "fit_nls")
     return result
+
+
+def _check_stable(stable: Any) -> bool:
+    if not isinstance(stable, (bool, np.bool_)):
+        raise TypeError(f"stable: expected True or False, got {type(stable).__name__}")
+    return bool(stable)
+
+
+def _stable_run(
+    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
+) -> dict[str, Any]:
+    """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
+    if not _check_stable(stable):
+        return run(None)
+    from lpvid.trust.enforce import run_stable
+
+    return run_stable(model, p_range, run)
 
 
 def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any, np.ndarray]:
@@ -228,6 +261,7 @@ def fit_l21(
     callback: Callback | None = None,
     warn: bool = True,
     time_data: Any = None,
+    stable: bool = False,
     **options: Any,
 ) -> L21Result:
     """Reweighted l2,1-regularised fit: Algorithm 1 of the paper (method.md section 4).
@@ -268,7 +302,8 @@ def fit_l21(
     fixed : optional
         Parameters kept at their starting value, as in :func:`lpvid.fixed_mask`.
     p_range : optional
-        Scheduling range for ``||psi_i||_inf``; default the model's, else the data's.
+        Scheduling range for ``||psi_i||_inf`` (and for ``stable``); default
+        the model's, else the data's.
     callback : callable, optional
         Called after every cone step with a dict; returning ``False`` stops.
         Ctrl-C stops the fit and returns the best model so far
@@ -280,6 +315,9 @@ def fit_l21(
         Time records beside the FRF data: the cost is then V_NLS plus their
         output error and ``M`` the sum of both noise floors (as in
         :func:`fit_nls`).
+    stable : bool
+        Keep every frozen model on the range stable (as in :func:`fit_nls`);
+        the start must be stable.
     **options
         Fields of :class:`lpvid.L21Settings` to change, e.g. ``eps=1e-4``,
         ``weights="scaled"``, ``max_outer=5``.
@@ -298,8 +336,12 @@ def fit_l21(
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
-    raw = _core.fit_l21(
-        problem, model.theta, sup, free_mask(model, fixed), s.to_core(g), _monitor(callback)
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    raw = _stable_run(
+        model,
+        stable,
+        rng,
+        lambda check: _core.fit_l21(problem, model.theta, sup, free, s.to_core(g), monitor, check),
     )
     result = _l21_result(raw, model, floor, g, rng, s.threshold)
     if warn:
@@ -318,14 +360,16 @@ def l21_path(
     callback: Callback | None = None,
     warn: bool = True,
     time_data: Any = None,
+    stable: bool = False,
     **options: Any,
 ) -> PathResult:
     """A warm-started sweep of :func:`fit_l21` from the largest gamma to the smallest.
 
     Each fit starts from the previous result, as in section 5.3 of the
     paper; the weights are recomputed at each start. Arguments (including
-    ``time_data``) as in :func:`fit_l21`; Ctrl-C stops the sweep and returns the fits so far
-    (the last one interrupted).
+    ``time_data``) as in :func:`fit_l21`; Ctrl-C stops the sweep and returns
+    the fits so far (the last one interrupted). With ``stable=True`` every fit
+    keeps the frozen models on the range stable.
 
     Returns
     -------
@@ -338,9 +382,20 @@ def l21_path(
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
-    raws = _core.l21_path(
-        problem, model.theta, sup, gs, free_mask(model, fixed), s.to_core(), _monitor(callback)
-    )
+    free, monitor = free_mask(model, fixed), _monitor(callback)
+    if _check_stable(stable):
+        from lpvid.trust.enforce import stable_path
+
+        raws = stable_path(
+            model,
+            rng,
+            gs,
+            lambda m, g, check: _core.fit_l21(
+                problem, m.theta, sup, free, s.to_core(g), monitor, check
+            ),
+        )
+    else:
+        raws = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
     results = [_l21_result(raw, model, floor, g, rng, s.threshold) for g, raw in raws]
     if warn:
         for r in results:

@@ -1,8 +1,10 @@
 """Frozen LTI models of an LPV model: their matrices, poles, stability and frequency response.
 
 The one place for the frozen stability test (poles strictly inside the unit
-circle in discrete time, strictly in the left half plane in continuous time)
-and for the frequency response of an LTI model written in numpy.
+circle in discrete time, strictly in the left half plane in continuous time),
+its margin, and the frequency response of an LTI model written in numpy.
+The core's stability check (``rust/stable.rs``) follows the same margin
+rule; a test compares the two.
 """
 
 from __future__ import annotations
@@ -15,7 +17,14 @@ from numpy.typing import ArrayLike, NDArray
 if TYPE_CHECKING:
     from lpvid.model import LpvModel
 
-__all__ = ["frozen_A", "frozen_poles", "frozen_stable", "lti_frf", "stable_poles"]
+__all__ = [
+    "frozen_A",
+    "frozen_poles",
+    "frozen_stable",
+    "lti_frf",
+    "stability_margin",
+    "stable_poles",
+]
 
 
 def stable_poles(lam: ArrayLike, Ts: float | None) -> NDArray[np.bool_]:
@@ -34,6 +43,46 @@ def stable_poles(lam: ArrayLike, Ts: float | None) -> NDArray[np.bool_]:
     """
     arr = np.asarray(lam)
     return arr.real < 0 if Ts is None else np.abs(arr) < 1
+
+
+def stability_margin(lam: ArrayLike, Ts: float | None) -> NDArray[np.float64]:
+    """Distance of a frozen model to the stability boundary, from its poles.
+
+    Discrete time: ``1 - max |lambda|``. Continuous time: the smallest
+    ``-Re lambda / |lambda|`` (the damping ratio of the least damped pole;
+    0 for a pole at the origin), so that the margin does not depend on the
+    time unit. Positive exactly when :func:`stable_poles` holds for every pole.
+
+    Parameters
+    ----------
+    lam : array_like of complex, shape (..., n)
+        Poles of one or several frozen models (the last axis).
+    Ts : float or None
+        Sample time; None for continuous time.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        ``-inf`` where a pole is not finite.
+
+    Examples
+    --------
+    >>> float(stability_margin([0.5 + 0.5j, 0.9], Ts=1.0))
+    0.09999999999999998
+    >>> float(stability_margin([-1 + 1j, -3.0], Ts=None))  # damping ratio of -1 +- 1j
+    0.7071067811865475
+
+    """
+    arr = np.asarray(lam, dtype=complex)
+    size = np.abs(arr)
+    if Ts is None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel = np.where(size > 0, -arr.real / np.where(size > 0, size, 1.0), 0.0)
+        out = np.min(rel, axis=-1)
+    else:
+        out = 1.0 - np.max(size, axis=-1)
+    bad = ~np.all(np.isfinite(arr), axis=-1)
+    return np.where(bad, -np.inf, out)
 
 
 def frozen_A(model: LpvModel, p: ArrayLike) -> NDArray[np.float64]:

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid import _core
-from lpvid._checks import positive_float, real_array, sample_time
+from lpvid import _core, _simulate, modelfile
+from lpvid._checks import real_array, sample_time
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
 
@@ -232,7 +232,9 @@ class LpvModel:
         Raises
         ------
         SingularModelError
-            When a frozen model has a pole exactly at an evaluation point.
+            When a frozen model has a pole exactly at an evaluation point, or
+            the response overflows (is not finite) at one; the message names
+            the point and the frequency line.
 
         """
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
@@ -251,6 +253,7 @@ class LpvModel:
         *,
         dt: float | None = None,
         return_states: bool = False,
+        on_divergence: str = "warn",
     ) -> Any:
         """Simulate the model in time along a scheduling trajectory ``p(t)``.
 
@@ -284,6 +287,14 @@ class LpvModel:
             model, and for a discrete-time one only allowed equal to ``Ts``.
         return_states : bool, optional
             Also return the states.
+        on_divergence : {"warn", "raise"}, optional
+            What happens when the simulation leaves the range of floating
+            point (a model unstable along ``p(t)``): ``"warn"`` (default)
+            returns the outputs as computed, Inf or NaN from that sample on,
+            with a ``RuntimeWarning`` that names the first sample whose
+            output (or returned state) is not finite and the scheduling
+            value there; ``"raise"`` raises a ``ValueError`` with the same
+            message instead.
 
         Returns
         -------
@@ -299,8 +310,13 @@ class LpvModel:
         ValueError, TypeError
             When ``u`` has the wrong number of inputs, ``p`` the wrong
             length, ``x0`` the wrong size, ``dt`` is missing or inconsistent,
-            a value is NaN or Inf, or the basis is not finite along ``p``.
-            An unstable model gives non-finite outputs, not an error.
+            a value is NaN or Inf, or the basis is not finite along ``p``;
+            with ``on_divergence="raise"``, when the simulation diverges.
+
+        Warns
+        -----
+        RuntimeWarning
+            With ``on_divergence="warn"``, when the simulation diverges.
 
         Examples
         --------
@@ -310,82 +326,15 @@ class LpvModel:
         array([0.  , 1.  , 1.5 , 1.75])
 
         """
-        n, r, l, nb = self.shape
-        u_arr = real_array(u, "u", ndim=(1, 2))
-        if u_arr.ndim == 1:
-            if r != 1:
-                raise ValueError(
-                    f"u: the model has {r} inputs: expected shape (T, {r}), got {u_arr.shape}"
-                )
-            u_arr = u_arr[:, None]
-        if u_arr.shape[1] != r:
-            raise ValueError(
-                f"u: expected shape (T, {r}) for a model with {r} inputs, got {u_arr.shape}"
-            )
-        t_len = u_arr.shape[0]
-        if t_len == 0:
-            raise ValueError("u: needs at least one sample")
-        p_arr = real_array(p, "p", ndim=(0, 1, 2))
-        n_params = self.basis.n_params
-        if p_arr.ndim == 0:
-            if n_params != 1:
-                raise ValueError(
-                    f"p: the basis takes {n_params} scheduling parameters: expected shape "
-                    f"(T, {n_params}), got a single number"
-                )
-            p_arr = np.full(t_len, float(p_arr))
-        if p_arr.shape[0] != t_len:
-            raise ValueError(
-                f"p: expected one scheduling value per sample of u (T={t_len}), "
-                f"got {p_arr.shape[0]}"
-            )
-        if p_arr.ndim == 1 and n_params != 1:
-            raise ValueError(
-                f"p: the basis takes {n_params} scheduling parameters: expected shape "
-                f"(T, {n_params}), got {p_arr.shape}"
-            )
-        psi = np.ascontiguousarray(self.basis_values(p_arr), dtype=np.float64)
-        if x0 is None:
-            x_init = np.zeros(n)
-        else:
-            x_init = real_array(x0, "x0", ndim=1)
-            if x_init.shape != (n,):
-                raise ValueError(f"x0: expected {n} initial states, got shape {x_init.shape}")
-        if self.Ts is not None:
-            if dt is not None:
-                step = positive_float(dt, "dt")
-                if not np.isclose(step, self.Ts, rtol=1e-9, atol=0.0):
-                    raise ValueError(
-                        f"dt: a discrete-time model runs at its sample time Ts={self.Ts:g} s, "
-                        f"got dt={step:g}; leave dt out"
-                    )
-            hold = None
-        else:
-            if dt is None:
-                raise ValueError(
-                    "dt: a continuous-time model needs the sample time of u in seconds "
-                    "(zero-order hold), e.g. dt=1e-3"
-                )
-            hold = positive_float(dt, "dt")
-        # u_arr and psi are this call's own arrays: the core may read them
-        # without the GIL.
-        y, x = _core.simulate(
-            n,
-            r,
-            l,
-            nb,
-            self.theta,
-            psi.ravel(),
-            np.ascontiguousarray(u_arr).ravel(),
-            x_init,
-            hold,
-            bool(return_states),
+        return _simulate.simulate(
+            self,
+            u,
+            p,
+            x0,
+            dt=dt,
+            return_states=return_states,
+            on_divergence=on_divergence,
         )
-        y = y.reshape(t_len, l)
-        if return_states:
-            assert x is not None
-            return y, x.reshape(t_len + 1, n)
-        return y
 
     def poles(self, p: ArrayLike) -> NDArray[np.complex128]:
         """Eigenvalues of ``A(p)`` at one scheduling value."""
@@ -431,23 +380,26 @@ class LpvModel:
         pathlib.Path
 
         """
-        from lpvid.modelfile import save_model
-
-        return save_model(self, path)
+        return modelfile.save_model(self, path)
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> LpvModel:
-        """Read a model written by :meth:`save`.
+        """Read a model file: what :meth:`save` writes.
+
+        A ``.mat`` file is read from its arrays (``A``, ``B``, ``C``, ``D``,
+        ``Ts``, the basis variables, ``p_range``); when it holds lpvid's own
+        copy of the model (``lpvid_model``, as :meth:`save` writes it), every
+        array must equal that copy to the last bit (see :mod:`lpvid.modelfile`).
 
         Raises
         ------
         ValueError
-            When the file is damaged, of another format or of another version.
+            When the file is damaged, of another format or of another
+            version, or a ``.mat`` file's arrays differ from its embedded
+            copy (the message names the variables that differ).
 
         """
-        from lpvid.modelfile import load_model
-
-        return load_model(path)
+        return modelfile.load_model(path, cls)
 
     def to_control(self, p: ArrayLike) -> Any:
         """The frozen model at ``p`` as a python-control ``StateSpace``.

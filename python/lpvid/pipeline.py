@@ -9,7 +9,6 @@ then chooses a model on the path and says why.
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,7 +16,9 @@ from typing import Any
 import numpy as np
 
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
+from lpvid.capacity import check_order
 from lpvid.cost import vnls
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
@@ -30,9 +31,11 @@ from lpvid.initial.localmodels import LocalModels
 from lpvid.layout import strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, PathResult
-from lpvid.schedule import between_points
 from lpvid.settings import L21Settings
 from lpvid.timecost import TimeCost, check_time_data, total_vnls
+from lpvid.trust.covariance import Covariance
+from lpvid.trust.stability import StabilityReport
+from lpvid.trust.steps import finish, identify_range, stable_fit, trust_lines
 
 __all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
 
@@ -88,7 +91,7 @@ class IdentifyResult:
     Attributes
     ----------
     model : LpvModel
-        The chosen model.
+        The chosen model (refitted on its support when ``refit``; see :attr:`refit`).
     chosen : int
         Its index in :attr:`entries`.
     reason : str
@@ -121,6 +124,20 @@ class IdentifyResult:
     timings : dict
         Seconds per stage: ``"local_s"``, ``"smile_s"``, ``"nls_s"``,
         ``"path_s"``, ``"total_s"``.
+    refit : FitResult or None
+        The chosen model refitted by Levenberg-Marquardt with its dropped
+        groups fixed at zero (``identify(..., refit=True)``, for a chosen
+        gamma > 0); :attr:`model` is then the refitted model.
+    refit_entry : PathEntry or None
+        V_NLS (and validation V_NLS) of the refitted model.
+    covariance : Covariance or None
+        First-order parameter covariance of :attr:`model` (dropped groups
+        and fixed parameters held): FRF bands through
+        ``covariance.frf_std(freqs_hz, p)``.
+    stability : StabilityReport or None
+        Stability of the frozen models of :attr:`model` over the scheduling
+        range (the model's, else the data's); ``lpvid.stability(result.model)``
+        adds the quadratic (common Lyapunov) test.
     """
 
     model: LpvModel
@@ -138,11 +155,20 @@ class IdentifyResult:
     validation: FrfData | None
     timings: dict[str, float] = field(default_factory=dict)
     time_data: TimeCost | None = None
+    refit: FitResult | None = None
+    refit_entry: PathEntry | None = None
+    covariance: Covariance | None = None
+    stability: StabilityReport | None = None
 
     @property
     def entry(self) -> PathEntry:
         """The chosen entry."""
         return self.entries[self.chosen]
+
+    @property
+    def final(self) -> PathEntry:
+        """The entry of :attr:`model`: the refit when there is one, else the chosen entry."""
+        return self.refit_entry if self.refit_entry is not None else self.entry
 
     def table(self) -> str:
         """The accuracy-versus-simplicity table, the chosen model marked."""
@@ -166,7 +192,7 @@ class IdentifyResult:
 
     def summary(self) -> str:
         """A few lines for people."""
-        e = self.entry
+        e = self.final
         lines = [
             f"start: {self.start} ({self.initial_reason})",
             *(
@@ -188,6 +214,7 @@ class IdentifyResult:
                 f"V_NLS = {e.validation_vnls:.6g} on validation data (noise floor "
                 f"{e.validation_floor}, ratio {e.validation_vnls / e.validation_floor:.3f})"
             )
+        lines += trust_lines(self.entry, self.refit_entry, self.covariance, self.stability)
         lines.append(f"time: {self.timings.get('total_s', float('nan')):.2f} s")
         return "\n".join(lines)
 
@@ -210,12 +237,12 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
         return None
     if not isinstance(validation, FrfData):
         raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
-    if (validation.n_outputs, validation.n_inputs, validation.n_params) != (
-        data.n_outputs,
-        data.n_inputs,
-        data.n_params,
-    ):
-        raise ValueError("validation: outputs, inputs or scheduling parameters differ from data's")
+
+    def sizes(d: FrfData) -> str:
+        return f"{d.n_outputs} outputs x {d.n_inputs} inputs, {d.n_params} scheduling parameter(s)"
+
+    if sizes(validation) != sizes(data):
+        raise ValueError(f"validation: has {sizes(validation)}; the data have {sizes(data)}")
     if not same_sample_time(validation.Ts, data.Ts):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
@@ -265,6 +292,7 @@ def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
     )
 
 
+@single_blas
 def identify(
     data: FrfData,
     order: int,
@@ -279,6 +307,8 @@ def identify(
     settings: L21Settings | None = None,
     progress: Progress | None = None,
     time_data: Any = None,
+    stable: bool = False,
+    refit: bool = True,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
@@ -297,6 +327,9 @@ def identify(
        ``validation`` data, the simplest model whose validation V_NLS is
        within ``tolerance`` of the best; without, the knee of the
        accuracy-versus-number-of-groups curve.
+    5. With ``refit``, the chosen model refitted on its support (dropped
+       groups fixed at zero), its parameter covariance, and the stability
+       of its frozen models over the scheduling range.
 
     With ``time_data`` (records along a varying scheduling trajectory),
     steps 1-2 use the FRF data alone; the chosen start is then refined on
@@ -336,6 +369,19 @@ def identify(
         path (the same messages go to the ``lpvid`` logger at INFO).
     time_data : TimeData or TimeCost, optional
         Time records of the same system (see :func:`lpvid.fit_time`).
+    stable : bool
+        Keep every frozen model on the scheduling range (the basis domain,
+        else the data's range) stable: each model of the path (and the
+        unregularised one) that is not is replaced by its refit on its
+        support with stability kept, from the model made stable
+        (:func:`lpvid.trust.enforce.stabilised`); the choice is then among
+        stable models. (The l2,1 fits themselves run unconstrained: at an
+        active stability constraint, rejected cone steps would stop their
+        simplification.)
+    refit : bool
+        Refit the chosen model by Levenberg-Marquardt with its dropped
+        groups fixed at zero (removes the shrinkage of the l2,1 penalty);
+        :attr:`IdentifyResult.model` is then the refitted model.
 
     Returns
     -------
@@ -346,8 +392,8 @@ def identify(
     ConvergenceWarning
         When the unregularised fit or a fit on the path stops at its
         iteration limit with its objective still falling (the entry's
-        ``converged`` is then False), and when the chosen model is unstable
-        between the scheduling points.
+        ``converged`` is then False), and when the chosen model has unstable
+        frozen models on the scheduling range.
 
     Raises
     ------
@@ -375,6 +421,11 @@ def identify(
             f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
             f"points, the data have {data.n_points}"
         )
+    if basis.n_params != data.n_params:
+        raise ValueError(
+            f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
+        )
+    check_order(n, basis, data, fixed)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
@@ -396,13 +447,18 @@ def identify(
     warn_if_unconverged(nls, "the unregularised fit (fit_nls)", stacklevel=2)
     for c in sorted(candidates, key=lambda c: (c.validation_vnls or 0.0, c.vnls)):
         val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
-        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{'' if c.stable else ', unstable'}")
+        dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
+        state = ("" if c.stable else ", unstable") + dropped
+        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
     timings["nls_s"] = nls.timings["total_s"]
     if time_cost is not None:
         _say(progress, f"refining the {start.name} start on the FRFs and the time records")
         nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
         warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
         timings["nls_s"] += nls.timings["total_s"]
+    p_range = identify_range(start.start, data)
+    if stable:
+        nls = stable_fit(nls, data, fixed, l21.threshold, p_range, time_cost)
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
@@ -416,7 +472,8 @@ def identify(
         )
         results.append(r)
         current = r.model
-        entries.append(_entry(r.gamma, r, data, validation, l21.threshold, time_cost))
+        kept = stable_fit(r, data, fixed, l21.threshold, p_range, time_cost) if stable else r
+        entries.append(_entry(r.gamma, kept, data, validation, l21.threshold, time_cost))
         warn_if_unconverged(r, f"the l2,1 fit at gamma = {r.gamma:g}", stacklevel=2)
         _say(
             progress,
@@ -427,16 +484,16 @@ def identify(
     path = PathResult(results)
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)
-    if not frozen_stable(entries[chosen].model, between_points(data.p)):
-        warnings.warn(
-            "the chosen model has unstable frozen models between the scheduling points "
-            "(checked at 7 values between every two neighbouring points)",
-            ConvergenceWarning,
-            stacklevel=2,
-        )
+    e = entries[chosen]
+    done = finish(e.model, e.gamma, data, fixed, l21.threshold, refit, stable, p_range, time_cost)
+    refit_entry = (
+        None
+        if done.refit is None
+        else _entry(e.gamma, done.refit, data, validation, l21.threshold, time_cost)
+    )
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(
-        model=entries[chosen].model,
+        model=done.model,
         chosen=chosen,
         reason=reason,
         entries=entries,
@@ -451,6 +508,10 @@ def identify(
         validation=validation,
         timings=timings,
         time_data=time_cost,
+        refit=done.refit,
+        refit_entry=refit_entry,
+        covariance=done.covariance,
+        stability=done.stability,
     )
 
 

@@ -11,13 +11,14 @@ import numpy as np
 
 from lpvid._files import write_atomic
 from lpvid.pipeline import IdentifyResult
+from lpvid.trust.stability import stability
 
 __all__ = ["write_report", "key_numbers"]
 
 
 def key_numbers(result: IdentifyResult) -> dict[str, Any]:
     """The numbers a report states, JSON-ready (also written as ``result.json``)."""
-    e = result.entry
+    e = result.final
     return {
         "order": result.model.n_states,
         "basis": result.model.basis.names,
@@ -46,6 +47,14 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
             for p in result.entries
         ],
         "timings": result.timings,
+        "vnls_before_refit": result.entry.vnls,
+        "validation_vnls_before_refit": result.entry.validation_vnls,
+        "covariance_rank": None if result.covariance is None else result.covariance.rank,
+        "stable": None if result.stability is None else result.stability.stable,
+        "stability_margin": None if result.stability is None else result.stability.margin,
+        "worst_p": None
+        if result.stability is None
+        else np.ravel(result.stability.worst_p).tolist(),
     }
 
 
@@ -81,6 +90,44 @@ def _figures(result: IdentifyResult, folder: Path, labels: dict[str, Any]) -> li
             "surface.png",
             "Magnitude of the chosen model over frequency and scheduling",
         )
+    cov = result.covariance
+    if cov is not None:
+        band_labels = {k: v for k, v in labels.items() if k != "p_label"}
+        p_label = labels.get("p_label", "p")
+        keep(
+            plots.frf_band(
+                cov, data, title="identification points", p_label=p_label, **band_labels
+            ),
+            "band_identification.png",
+            "Model FRF with its 95 % band (first-order covariance) and the measured FRF "
+            "at the identification points",
+        )
+        if result.validation is not None:
+            keep(
+                plots.frf_band(
+                    cov,
+                    result.validation,
+                    title="validation points",
+                    p_label=p_label,
+                    **band_labels,
+                ),
+                "band_validation.png",
+                "The same at the validation points, where the model was not fitted",
+            )
+        if data.n_params == 1:
+            lo, hi = data.p_range
+            keep(
+                plots.frf_std_map(
+                    cov,
+                    data.freqs_hz,
+                    np.linspace(lo, hi, 60),
+                    p_marks=data.p,
+                    p_label=p_label,
+                ),
+                "band_map.png",
+                "Width of the 95 % band relative to |G_m| over frequency and scheduling "
+                "(first output and input; dashed: identification points)",
+            )
     keep(
         plots.group_norms({"SMILE": result.initial, "chosen": model}),
         "group_norms.png",
@@ -155,8 +202,38 @@ def write_report(
             drawn = _figures(result, out / "figures", labels)
         except ImportError as exc:
             figure_note = f"(figures skipped: {exc})"
-    md = _markdown(result, title, description, drawn, figure_note)
+    md = _markdown(result, title, description, drawn, figure_note, _trust(result))
     return write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
+
+
+def _trust(result: IdentifyResult) -> list[str]:
+    """The report's section on the refit, the covariance and stability over the range."""
+    lines = ["## Between the points: uncertainty and stability", ""]
+    r, e = result.refit_entry, result.entry
+    if r is not None:
+        line = (
+            f"- refit on the support (dropped groups fixed at zero): V_NLS {e.vnls:.6g} -> "
+            f"{r.vnls:.6g}"
+        )
+        if e.validation_vnls is not None and r.validation_vnls is not None:
+            line += f"; validation V_NLS {e.validation_vnls:.6g} -> {r.validation_vnls:.6g}"
+        lines.append(line)
+    c = result.covariance
+    if c is not None:
+        lines.append(
+            f"- parameter covariance (first order, sigma-weighted): rank {c.rank} of "
+            f"{c.n_free} free parameters, {c.n_similarity} similarity directions left out"
+            + (
+                f", {c.n_unidentified} directions not determined by the data"
+                if c.n_unidentified
+                else ""
+            )
+        )
+    rng = result.stability.p_range if result.stability is not None else None
+    rep = stability(result.model, rng)
+    lines += [f"- {line}" for line in rep.summary().splitlines()]
+    lines.append(f"- stability check: {rep.seconds:.2f} s")
+    return lines + [""]
 
 
 def _markdown(
@@ -165,8 +242,9 @@ def _markdown(
     description: str | None,
     drawn: list[tuple[str, str]],
     figure_note: str,
+    trust: list[str],
 ) -> str:
-    data, e = result.data, result.entry
+    data, e = result.data, result.final
     kind = "continuous time" if data.Ts is None else f"discrete time, Ts = {data.Ts:g} s"
     lines = [f"# {title}", ""]
     if description:
@@ -224,6 +302,7 @@ def _markdown(
         "",
         "Files: `model.json` (lpvid model file), `model.mat` (MATLAB), `result.json`.",
         "",
+        *trust,
     ]
     if drawn or figure_note:
         lines += ["## Figures", ""]

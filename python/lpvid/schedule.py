@@ -15,12 +15,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array
+from lpvid._graphs import spanning_tree_walk
 
 __all__ = [
     "as_rows",
     "between_points",
     "model_range",
     "propagation_order",
+    "range_pairs",
     "scheduling_range",
     "unit_scaled",
 ]
@@ -30,6 +32,41 @@ def as_rows(p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
     """Scheduling values as an ``(N, Np)`` array (a 1-D array is one parameter)."""
     arr = real_array(p, name, ndim=(1, 2))
     return arr.reshape(arr.shape[0], -1)
+
+
+def range_pairs(value: Any, n_params: int | None = None, name: str = "p_range") -> list[Any]:
+    """A scheduling range in lpvid's convention as a list of ``(lo, hi)`` pairs, checked.
+
+    Parameters
+    ----------
+    value : (lo, hi) or sequence of (lo, hi)
+        The range, one pair per parameter, every pair with ``lo < hi``.
+    n_params : int, optional
+        The number of scheduling parameters expected.
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    list of (float, float)
+
+    Examples
+    --------
+    >>> from lpvid.schedule import range_pairs
+    >>> range_pairs((0, 1))
+    [(0.0, 1.0)]
+
+    """
+    arr = real_array(value, name)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected (lo, hi) or a list of such pairs, got {value!r}")
+    if np.any(arr[:, 1] <= arr[:, 0]):
+        raise ValueError(f"{name}: every pair needs lo < hi, got {value!r}")
+    if n_params is not None and arr.shape[0] != n_params:
+        raise ValueError(f"{name}: {arr.shape[0]} pairs given for {n_params} scheduling parameters")
+    return [(float(lo), float(hi)) for lo, hi in arr]
 
 
 def scheduling_range(p: ArrayLike, name: str = "p") -> Any:
@@ -108,8 +145,6 @@ def propagation_order(
         ``parent[k]`` is the already visited neighbour of point k (-1 for the root).
 
     """
-    from scipy.sparse.csgraph import breadth_first_order, minimum_spanning_tree
-
     N = p.shape[0]
     s = unit_scaled(p)
     dist = np.linalg.norm(s[:, None, :] - s[None, :, :], axis=2)
@@ -119,11 +154,7 @@ def propagation_order(
         raise ValueError(f"root: expected a point index in 0..{N - 1}, got {root}")
     if N == 1:
         return np.array([0]), np.array([-1])
-    # Strictly positive weights: the sparse tree drops zero entries.
-    tree = minimum_spanning_tree(dist + 1e-300)
-    order, parent = breadth_first_order(tree, root, directed=False)
-    parent = np.where(parent < 0, -1, parent)
-    return order, parent
+    return spanning_tree_walk(dist, root)
 
 
 def between_points(p: ArrayLike, steps: int = 8) -> NDArray[np.float64]:

@@ -50,7 +50,12 @@ class L21Settings:
         tolerances), > 0.
     ftol : float
         Inner loop also ends when a step lowers the objective by less than
-        ``ftol`` times its value.
+        ``ftol`` times its value. The objective is about ``V_NLS / M`` near
+        the noise floor, so the default 1e-4 ends it when a step buys less
+        than ``1e-4 M`` in V_NLS, far below the noise in V_NLS (``sqrt(M)``):
+        on the built-in data sets, the heavily damped test case and the
+        scale ladder it chose the same models as 1e-6 (or better validated
+        ones) with 25-50 % fewer cone steps.
     max_outer, max_inner : int
         Iteration limits of the outer (reweighting) and inner (cone step)
         loops, >= 1.
@@ -72,7 +77,7 @@ class L21Settings:
     dvnls_min: float = 1e-3
     threshold: float = 1e-6
     cone_tol: float = 1e-8
-    ftol: float = 1e-6
+    ftol: float = 1e-4
     max_outer: int = 20
     max_inner: int = 10
     lambda0: float = 1e-2

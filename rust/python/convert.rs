@@ -9,8 +9,12 @@ use pyo3::prelude::*;
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
         match e {
-            Error::InvalidArgument { .. } => PyValueError::new_err(e.to_string()),
-            Error::Singular { .. } => super::SingularModelError::new_err(e.to_string()),
+            Error::InvalidArgument { .. } | Error::Unstable { .. } => {
+                PyValueError::new_err(e.to_string())
+            }
+            Error::Singular { .. } | Error::Overflow { .. } => {
+                super::SingularModelError::new_err(e.to_string())
+            }
             Error::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
             Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
         }

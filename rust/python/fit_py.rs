@@ -5,10 +5,13 @@
 
 use super::convert::{bool_vec, real_vec, to_py};
 use super::time_py::target;
+use super::trust_py::PyFrozenRange;
 use crate::fit::{Fit, Iteration, Monitor, StepKind, Stop};
 use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, LmSettings};
+use crate::objective::Objective;
+use crate::stable::Stable;
 use numpy::PyReadonlyArray1;
 use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
@@ -165,6 +168,19 @@ fn weighting(name: &str) -> PyResult<Weighting> {
     }
 }
 
+/// The problem's objective, wrapped so that unstable frozen models on the
+/// range are refused when `stable` is given.
+fn with_stability<T>(
+    problem: &dyn Objective,
+    stable: Option<&PyFrozenRange>,
+    run: impl FnOnce(&dyn Objective) -> crate::Result<T>,
+) -> crate::Result<T> {
+    match stable {
+        Some(range) => run(&Stable::new(problem, range.inner.clone(), range.tol)?),
+        None => run(problem),
+    }
+}
+
 /// Read an optional setting, keeping `default` when absent.
 fn setting<'py, T: FromPyObjectOwned<'py>>(
     d: &Bound<'py, PyDict>,
@@ -266,7 +282,7 @@ fn l21_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 
 /// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`. Returns a dict.
 #[pyfunction]
-#[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None))]
+#[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None, stable=None))]
 fn fit_nls_py<'py>(
     py: Python<'py>,
     problem: &Bound<'py, PyAny>,
@@ -274,22 +290,27 @@ fn fit_nls_py<'py>(
     free: Option<PyReadonlyArray1<'py, bool>>,
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
+    stable: Option<PyRef<'py, PyFrozenRange>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
     let target = target(problem)?;
     let problem = target.objective();
     let free = free_set(problem.shape(), free)?;
     let settings = lm_settings(settings)?;
+    let stable = stable.as_deref();
     let (fit, signalled) = with_monitor(py, callback, |monitor| {
         problem.shape().check_theta(&theta)?;
-        levenberg_marquardt(problem, &theta, &free, &settings, monitor)
+        with_stability(problem, stable, |objective| {
+            levenberg_marquardt(objective, &theta, &free, &settings, monitor)
+        })
     })?;
     fit_dict(py, fit, signalled)
 }
 
 /// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`. Returns a dict.
 #[pyfunction]
-#[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None))]
+#[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None, stable=None))]
+#[allow(clippy::too_many_arguments)]
 fn fit_l21_py<'py>(
     py: Python<'py>,
     problem: &Bound<'py, PyAny>,
@@ -298,6 +319,7 @@ fn fit_l21_py<'py>(
     free: Option<PyReadonlyArray1<'py, bool>>,
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
+    stable: Option<PyRef<'py, PyFrozenRange>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
@@ -305,15 +327,18 @@ fn fit_l21_py<'py>(
     let problem = target.objective();
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
+    let stable = stable.as_deref();
     let (fit, signalled) = with_monitor(py, callback, |monitor| {
-        fit_l21(problem, &theta, &free, &sup, &settings, monitor)
+        with_stability(problem, stable, |objective| {
+            fit_l21(objective, &theta, &free, &sup, &settings, monitor)
+        })
     })?;
     fit_dict(py, fit, signalled)
 }
 
 /// Warm-started gamma path; returns a list of (gamma, dict), largest gamma first.
 #[pyfunction]
-#[pyo3(name = "l21_path", signature = (problem, theta, sup_norms, gammas, free, settings, callback=None))]
+#[pyo3(name = "l21_path", signature = (problem, theta, sup_norms, gammas, free, settings, callback=None, stable=None))]
 #[allow(clippy::too_many_arguments)]
 fn l21_path_py<'py>(
     py: Python<'py>,
@@ -324,6 +349,7 @@ fn l21_path_py<'py>(
     free: Option<PyReadonlyArray1<'py, bool>>,
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
+    stable: Option<PyRef<'py, PyFrozenRange>>,
 ) -> PyResult<Bound<'py, PyList>> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
@@ -332,8 +358,11 @@ fn l21_path_py<'py>(
     let problem = target.objective();
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
+    let stable = stable.as_deref();
     let (fits, signalled) = with_monitor(py, callback, |monitor| {
-        l21_path(problem, &theta, &free, &sup, &gammas, &settings, monitor)
+        with_stability(problem, stable, |objective| {
+            l21_path(objective, &theta, &free, &sup, &gammas, &settings, monitor)
+        })
     })?;
     let out = PyList::empty(py);
     for (gamma, fit) in fits {

@@ -6,6 +6,7 @@ mod fit_py;
 mod problem_py;
 mod simulate_py;
 mod time_py;
+mod trust_py;
 
 use pyo3::prelude::*;
 
@@ -13,13 +14,16 @@ pyo3::create_exception!(
     _core,
     SingularModelError,
     pyo3::exceptions::PyArithmeticError,
-    "zI - A(p) is singular at some scheduling point and frequency."
+    "zI - A(p) is singular, or the frequency response overflowed, at some scheduling point \
+     and frequency."
 );
 
 /// The compiled core of lpvid (private: use the `lpvid` package).
 #[pymodule]
 #[pyo3(name = "_core")]
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The package version, from Cargo.toml (lpvid.__version__).
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add(
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),
@@ -28,5 +32,6 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     fit_py::register(m)?;
     simulate_py::register(m)?;
     time_py::register(m)?;
+    trust_py::register(m)?;
     Ok(())
 }

@@ -20,8 +20,9 @@ fn data<'a>(a: &'a PyReadonlyArray1<'_, f64>) -> Cow<'a, [f64]> {
 /// Simulate an LPV model along a trajectory: `basis` is `T x Nb`, `u`
 /// `T x r`, both row-major and flat; `dt` None for a discrete-time model,
 /// the sample time for a continuous-time one (zero-order hold). Returns
-/// `(y, x)`, flat `T x l` and `(T + 1) x n` row-major, `x` None unless
-/// `states`.
+/// `(y, x, diverged)`: `y` and `x` flat `T x l` and `(T + 1) x n`
+/// row-major, `x` None unless `states`; `diverged` the first sample whose
+/// output `y(t)` or (with `states`) state `x(t + 1)` is not finite, or None.
 ///
 /// The GIL is released while the arrays are read: the caller passes arrays
 /// that no other thread writes to (`LpvModel.simulate` passes its own
@@ -42,14 +43,22 @@ fn simulate_py<'py>(
     x0: PyReadonlyArray1<'py, f64>,
     dt: Option<f64>,
     states: bool,
-) -> PyResult<(Bound<'py, PyArray1<f64>>, Option<Bound<'py, PyArray1<f64>>>)> {
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Option<Bound<'py, PyArray1<f64>>>,
+    Option<usize>,
+)> {
     let shape = Shape::new(n, r, l, nb)?;
     let (theta, basis, u, x0) = (data(&theta), data(&basis), data(&u), data(&x0));
     let traj = py.detach(|| match dt {
         None => simulate(&shape, &theta, &basis, &u, &x0, states),
         Some(dt) => simulate_zoh(&shape, &theta, &basis, &u, &x0, dt, states),
     })?;
-    Ok((to_py(py, traj.y), traj.x.map(|x| to_py(py, x))))
+    Ok((
+        to_py(py, traj.y),
+        traj.x.map(|x| to_py(py, x)),
+        traj.diverged,
+    ))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

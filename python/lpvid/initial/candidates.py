@@ -17,18 +17,24 @@ from dataclasses import dataclass
 from typing import Any
 
 from lpvid._checks import positive_int
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
-from lpvid.cost import vnls
+from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
-from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.frozen import frozen_stable
 from lpvid.initial.continuation import best_determined, continue_local
 from lpvid.initial.diagnosis import Consistency, consistency
-from lpvid.initial.globalstart import constant_start, degree_levels, free_groups
+from lpvid.initial.globalstart import (
+    constant_start,
+    degree_levels,
+    finish_global,
+    global_runner,
+)
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
+from lpvid.initial.race import Runner, Stage, race
 from lpvid.initial.smile import smile_candidates
-from lpvid.layout import strictly_proper
+from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
@@ -77,6 +83,10 @@ class Candidate:
         What was done, in words.
     fit : FitResult or None
         The last :func:`lpvid.fit_nls` run (its history and timings).
+    refined : bool
+        Whether it was refined to convergence (or to its step limit); False
+        when the race of the starts (:func:`lpvid.initial.race.race`)
+        dropped it on the way, its figures then those of a partial fit.
     start : LpvModel or None
         The model that run started from: the SMILE model (with its
         ``info["form"]``), or for a global start the model before its last
@@ -95,6 +105,7 @@ class Candidate:
     note: str = ""
     fit: FitResult | None = None
     start: LpvModel | None = None
+    refined: bool = True
 
     @property
     def ratio(self) -> float:
@@ -112,28 +123,21 @@ class Candidate:
         val = self.validation_ratio
         v = "" if val is None else f", validation V/floor {val:.3f}"
         st = "" if self.stable else ", unstable between the points"
-        return f"{self.name}: V/floor {self.ratio:.3f}{v}{st}, {self.seconds:.2f} s"
+        dropped = "" if self.refined else ", dropped before convergence"
+        return f"{self.name}: V/floor {self.ratio:.3f}{v}{st}{dropped}, {self.seconds:.2f} s"
 
 
 def _candidate(
-    name: str,
-    start: LpvModel,
-    data: FrfData,
-    validation: FrfData | None,
-    fixed: Any,
-    t0: float,
-    note: str,
-    fit: FitResult | None = None,
-    max_iter: int = 100,
+    runner: Runner, data: FrfData, validation: FrfData | None, seconds: float
 ) -> Candidate:
-    """Refine ``start`` by fit_nls (unless its ``fit`` is given) and evaluate it."""
-    if fit is None:
-        fit = raise_if_interrupted(fit_nls(start, data, fixed, max_iter=max_iter, warn=False))
+    """A raced runner as a candidate: its model evaluated, its start labelled."""
+    fit, start = runner.fit, runner.start
+    assert fit is not None and start is not None
     model = fit.model
     if model is not start and "method" not in model.info:
         # A refined SMILE model: say where it came from.
         model.info.update({"method": "fit_nls", "start": dict(start.info)})
-    model.info["candidate"] = name
+    model.info["candidate"] = runner.name
     nb = model.n_basis
     if "constant_groups" in start.info:  # a SMILE start
         const = int(start.info["constant_groups"])
@@ -141,22 +145,27 @@ def _candidate(
         const = 4 * nb - model.group_norms().count(1e-6)
     else:
         const = 0
+    note = runner.note
+    if runner.dropped is not None:
+        note += f"; dropped from the race of the starts after {runner.dropped} steps"
     return Candidate(
-        name=name,
+        name=runner.name,
         model=model,
         vnls=float(fit.vnls),
         noise_floor=data.n_residuals,
         validation_vnls=None if validation is None else vnls(model, validation),
         validation_floor=None if validation is None else validation.n_residuals,
-        seconds=time.perf_counter() - t0,
+        seconds=runner.seconds + seconds,
         constant_groups=int(const),
         stable=frozen_stable(model, between_points(data.p)),
         note=note,
         fit=fit,
         start=start,
+        refined=runner.dropped is None,
     )
 
 
+@single_blas
 def initial_candidates(
     data: FrfData,
     order: int,
@@ -169,6 +178,7 @@ def initial_candidates(
     local: LocalModels | None = None,
     diagnosis: Consistency | None = None,
     max_iter: int = 100,
+    halving: bool = True,
 ) -> list[Candidate]:
     """Initial LPV models by several routes, each refined by :func:`lpvid.fit_nls`.
 
@@ -206,13 +216,19 @@ def initial_candidates(
         (default ``local.consistency``, else computed here once).
     max_iter : int
         Most Levenberg-Marquardt steps per fit.
+    halving : bool
+        Race the starts (:func:`lpvid.initial.race.race`): every start gets
+        a few steps, the worse half is dropped, the rest twice as many, and
+        so on, until the best few are refined to convergence (default).
+        False refines every start to convergence.
 
     Returns
     -------
     list of Candidate
         In the order of ``routes``; a coherent form that cannot be built for
         a set of local models is left out (the reason is in the notes of
-        that route's candidates).
+        that route's candidates). Starts dropped by the race have
+        ``refined`` False.
 
     """
     if not isinstance(data, FrfData):
@@ -236,7 +252,7 @@ def initial_candidates(
     elif not isinstance(local, LocalModels):
         raise TypeError(f"local: expected LocalModels, got {type(local).__name__}")
     local_s = time.perf_counter() - t
-    out: list[Candidate] = []
+    runners: list[tuple[Runner, float]] = []  # with the time spent building the start
     # The diagnosis and the best-determined point serve the continuation and
     # the global starts alike: computed once.
     root = None
@@ -252,20 +268,13 @@ def initial_candidates(
         failed = next(iter(starts.values())).info.get("unavailable", {}) if starts else {}
         missing = f"; forms not built: {', '.join(failed)}" if failed else ""
         for form, m0 in starts.items():
-            t1 = time.perf_counter() - build
-            out.append(
-                _candidate(
-                    f"{prefix}smile:{form}",
-                    m0,
-                    data,
-                    validation,
-                    fixed,
-                    t1,
-                    f"SMILE ({form} form) of {shared}, refined by fit_nls{missing}",
-                    max_iter=max_iter,
-                )
-            )
+            note = f"SMILE ({form} form) of {shared}, refined by fit_nls{missing}"
+            mask = fixed_mask(m0, fixed)
+            stage = Stage("all groups", mask)
+            runner = Runner(f"{prefix}smile:{form}", m0, [stage], max_iter=max_iter, note=note)
+            runners.append((runner, build))
 
+    globals_: list[tuple[Runner, Any, str]] = []
     for route in routes:
         if route == "plain":
             smile_route("", local, f"the plain local models ({local_s:.2f} s)")
@@ -293,23 +302,23 @@ def initial_candidates(
             )
             shared = time.perf_counter() - t0
             for stages in ("all", "degree") if levels > 1 else ("all",):
-                t0 = time.perf_counter() - shared
-                m, last, m0 = free_groups(const, data, fixed, stages, max_iter=max_iter)
-                steps = "; ".join(
-                    f"{h['free_groups']}: V/floor {h['vnls'] / data.n_residuals:.3f}"
-                    for h in m.info["history"]
-                )
-                out.append(
-                    _candidate(
-                        f"global:{stages}",
-                        m0,
-                        data,
-                        validation,
-                        fixed,
-                        t0,
-                        f"constant model from local model {m.info['point']}, then groups "
-                        f"freed ({stages}): {steps}",
-                        fit=last,
-                    )
-                )
-    return out
+                runner = global_runner(const, fixed, stages, max_iter)
+                runners.append((runner, shared))
+                globals_.append((runner, const, stages))
+    if halving:
+        race([r for r, _ in runners], data, validation)
+    else:
+        for r, _ in runners:
+            while not r.done:
+                r.advance(data, max_iter)
+    for runner, const, stages in globals_:
+        m = finish_global(runner, const, stages)
+        steps = "; ".join(
+            f"{h['free_groups']}: V/floor {h['vnls'] / data.n_residuals:.3f}"
+            for h in m.info["history"]
+        )
+        runner.note = (
+            f"constant model from local model {m.info['point']}, then groups "
+            f"freed ({stages}): {steps}"
+        )
+    return [_candidate(r, data, validation, shared) for r, shared in runners]

@@ -15,8 +15,10 @@ __all__ = ["choose"]
 def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Candidate, str]:
     """The best initial candidate, and why.
 
-    Only the candidates whose frozen models are stable between the points
-    (:attr:`Candidate.stable`) take part, when there are any: a model that
+    Only the candidates refined to convergence (:attr:`Candidate.refined`:
+    not dropped by the race of the starts) whose frozen models are stable
+    between the points (:attr:`Candidate.stable`) take part, when there are
+    any: a model that
     fits the points and goes unstable between them is rarely what the data
     mean, however it fares at a few validation points.
 
@@ -49,14 +51,18 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
             raise TypeError(f"candidates[{k}]: expected a Candidate, got {type(c).__name__}")
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
     finite = [c for c in cands if np.isfinite(c.vnls)] or cands
-    pool = [c for c in finite if c.stable] or finite
-    dropped = len(finite) - len(pool)
+    refined = [c for c in finite if c.refined] or finite
+    pool = [c for c in refined if c.stable] or refined
+    dropped = len(refined) - len(pool)
+    raced = len(finite) - len(refined)
     among = (
         f" among the {len(pool)} candidates whose frozen models are stable between the "
         f"points ({dropped} left out)"
         if dropped
         else ""
     )
+    if raced:
+        among += f"; {raced} start(s) dropped by the race of the starts"
     if all(c.validation_vnls is not None for c in pool):
         vals = {id(c): float(c.validation_vnls) for c in pool}  # type: ignore[arg-type]
         best = min(vals.values())

@@ -36,6 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._graphs import assignment
 from lpvid.frozen import stable_poles
 from lpvid.schedule import propagation_order
 
@@ -221,8 +222,6 @@ def _match_cost(a: dict[str, object], b: dict[str, object]) -> float:
 
 def _track(all_modes: list[list[dict[str, object]]], p: Arr) -> list[list[dict[str, object]]]:
     """Reorder every point's modes so that index j is the same mode everywhere."""
-    from scipy.optimize import linear_sum_assignment
-
     counts = {(sum(m["real"] for m in ms), len(ms)) for ms in all_modes}  # type: ignore[misc]
     if len(counts) != 1:
         raise CoherenceError(
@@ -245,7 +244,7 @@ def _track(all_modes: list[list[dict[str, object]]], p: Arr) -> list[list[dict[s
             if not ri:
                 continue
             cost = np.array([[_match_cost(ref[a], mine[b]) for b in mi] for a in ri])
-            rows, cols = linear_sum_assignment(cost)
+            rows, cols = assignment(cost)
             for a, b in zip(rows, cols, strict=True):
                 out[ri[a]] = mine[mi[b]]
         tracked[k] = out  # type: ignore[assignment]

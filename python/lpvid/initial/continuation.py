@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._threads import single_blas
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.initial.coherent import propagation_order
@@ -93,6 +94,7 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
     return propagation_order(arr, root)
 
 
+@single_blas
 def continue_local(
     data: FrfData,
     local: LocalModels,

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.cost import check_compatible
 from lpvid.data import FrfData
@@ -17,6 +18,7 @@ from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.initial.continuation import best_determined
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
+from lpvid.initial.race import Runner, Stage
 from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
@@ -27,8 +29,11 @@ __all__ = [
     "ConstantStart",
     "constant_start",
     "degree_levels",
+    "finish_global",
     "free_groups",
+    "global_runner",
     "global_start",
+    "group_stages",
 ]
 
 
@@ -49,6 +54,7 @@ def _group_mask(model: LpvModel, indices: Sequence[int]) -> NDArray[np.bool_]:
     return fixed_mask(model, {x: idx for x in "ABCD"}) if idx else fixed_mask(model, None)
 
 
+@single_blas
 def global_start(
     data: FrfData,
     order: int,
@@ -179,6 +185,42 @@ def constant_start(
     return ConstantStart(fit.model, int(point), history, fit, model)
 
 
+def group_stages(const: ConstantStart, fixed: Any, stages: str) -> list[Stage]:
+    """The fits that free the groups of a constant start: all at once or degree by degree."""
+    model = const.model
+    user = fixed_mask(model, fixed)
+    degrees = degree_levels(model.basis)
+    levels = sorted(set(degrees)) if stages == "degree" else ([max(degrees)] if degrees else [])
+    out = []
+    for level in levels:
+        frozen = [i + 1 for i, d in enumerate(degrees) if d > level]
+        out.append(Stage(f"degree <= {level}", user | _group_mask(model, frozen)))
+    return out
+
+
+def global_runner(const: ConstantStart, fixed: Any, stages: str, max_iter: int = 100) -> Runner:
+    """A :class:`~lpvid.initial.race.Runner` that frees the groups of a constant start."""
+    runner = Runner(
+        f"global:{stages}", const.model, group_stages(const, fixed, stages), max_iter=max_iter
+    )
+    if not runner.stages:  # no basis function: the constant model is the start
+        runner.done, runner.fit, runner.start = True, const.fit, const.start
+    return runner
+
+
+def finish_global(runner: Runner, const: ConstantStart, stages: str) -> LpvModel:
+    """Label a finished global runner's models (``info`` as in :func:`global_start`)."""
+    history = list(const.history) + runner.history
+    info = {"method": "global_start", "point": const.point, "stages": stages, "history": history}
+    runner.model.info.update(info)
+    # The start may be shared with other global starts: label a copy.
+    base = runner.start if runner.start is not None else const.model
+    start = base.with_theta(base.theta)
+    start.info.update({**base.info, **info})
+    runner.start = start
+    return runner.model
+
+
 def free_groups(
     const: ConstantStart,
     data: FrfData,
@@ -198,25 +240,9 @@ def free_groups(
     stage_start : LpvModel
         The model the last stage started from.
     """
-    model = const.model
-    user = fixed_mask(model, fixed)
-    degrees = degree_levels(model.basis)
-    levels = sorted(set(degrees)) if stages == "degree" else ([max(degrees)] if degrees else [])
-    history = list(const.history)
-    stage_start, fit = const.start, const.fit
-    for level in levels:
-        frozen = [i + 1 for i, d in enumerate(degrees) if d > level]
-        stage_start = model
-        fit = raise_if_interrupted(
-            fit_nls(model, data, user | _group_mask(model, frozen), max_iter=max_iter, warn=False)
-        )
-        model = fit.model
-        history.append(
-            {"free_groups": f"degree <= {level}", "vnls": float(fit.vnls), "n_iter": fit.n_iter}
-        )
-    info = {"method": "global_start", "point": const.point, "stages": stages, "history": history}
-    model.info.update(info)
-    # The stage start may be shared with other global starts: label a copy.
-    start = stage_start.with_theta(stage_start.theta)
-    start.info.update({**stage_start.info, **info})
-    return model, fit, start
+    runner = global_runner(const, fixed, stages, max_iter)
+    while not runner.done:
+        runner.advance(data, max_iter)
+    model = finish_global(runner, const, stages)
+    assert runner.fit is not None and runner.start is not None
+    return model, runner.fit, runner.start

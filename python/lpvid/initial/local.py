@@ -7,8 +7,9 @@ from typing import Any
 import numpy as np
 
 from lpvid._checks import positive_int
+from lpvid._threads import single_blas
 from lpvid.basis import Polynomial
-from lpvid.cost import vnls
+from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.initial.coherent import balance
@@ -21,6 +22,7 @@ from lpvid.model import LpvModel
 __all__ = ["identify_lti"]
 
 
+@single_blas
 def identify_lti(
     data: FrfData,
     order: int,

@@ -8,11 +8,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid.cost import gauss_newton
+from lpvid._graphs import assignment
 from lpvid.data import FrfData
-from lpvid.layout import fixed_mask
 from lpvid.model import LpvModel
-from lpvid.similarity import free_similarity_directions
+from lpvid.trust.covariance import covariance
 
 __all__ = [
     "describe_pole",
@@ -66,10 +65,8 @@ def match_poles(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> tuple[f
     Returns the largest distance among the paired poles and the indices of
     that worst pair in ``a`` and ``b``.
     """
-    from scipy.optimize import linear_sum_assignment
-
     cost = np.abs(a[:, None] - b[None, :])
-    rows, cols = linear_sum_assignment(cost)
+    rows, cols = assignment(cost)
     k = int(np.argmax(cost[rows, cols]))
     return float(cost[rows[k], cols[k]]), int(rows[k]), int(cols[k])
 
@@ -97,13 +94,9 @@ def pole_distance(a: LpvModel, b: LpvModel) -> float:
 def pole_uncertainty(model: LpvModel, data: FrfData, fixed: Any = None) -> NDArray[np.float64]:
     """Standard deviation of every pole of an LTI model in ``log(-s)`` units.
 
-    First-order propagation of the parameter covariance ``(J^T J)^+ / 2``
-    (each real residual of V_NLS has variance 1/2) through the pole
-    sensitivities ``d lambda_i / d A_ab = W_ia V_bi`` (``V`` the right
-    eigenvectors of A, ``W = V^-1``). ``J^T J`` is singular along the
-    similarity transforms, which move no pole; the pseudo-inverse is taken
-    exactly on their complement (a cut-off on small singular values would
-    also drop the poorly determined directions this is meant to measure).
+    :meth:`lpvid.Covariance.pole_std` (first-order propagation of the
+    parameter covariance, on the complement of the similarity transforms,
+    which move no pole) divided by ``|s|``, ``s`` the continuous-time pole:
     0.1 means the pole's frequency (or its damping angle) is known to about
     10 %. Valid near a minimum of V_NLS, where the model fits within the noise.
 
@@ -119,36 +112,15 @@ def pole_uncertainty(model: LpvModel, data: FrfData, fixed: Any = None) -> NDArr
     Returns
     -------
     ndarray, shape (n,)
-        In the order of ``numpy.linalg.eigvals(model.A[0])``.
+        In the order of ``numpy.linalg.eig(model.A[0])``.
 
     """
     if model.n_basis != 0:
         raise ValueError("model: expected an LTI model (Nb = 0)")
-    n = model.n_states
-    free = ~fixed_mask(model, fixed)
-    _, _, jtj = gauss_newton(model, data, fixed)
-    # The similarity directions leave the FRF unchanged: J^T J is singular
-    # along them. They do not move the poles either, so the pole variance is
-    # g^T (J^T J)^+ g, computed as g^T (H + S S^T)^-1 g on the Jacobi-scaled
-    # H with S spanning them.
-    T = free_similarity_directions(model, free)
-    d = np.sqrt(np.maximum(np.diag(jtj), 1e-300))
-    H = jtj / d[:, None] / d[None, :]
-    if T.shape[1]:
-        S, sv, _ = np.linalg.svd(T * d[:, None], full_matrices=False)
-        S = S[:, sv > 1e-10 * sv[0]]
-    else:
-        S = np.zeros((H.shape[0], 0))
-    lam, V = np.linalg.eig(model.A[0])
-    W = np.linalg.inv(V)
-    # theta_A is vec(A) column-major: index a + b n for A[a, b].
-    g = np.zeros((n, model.theta.size), dtype=complex)
-    g[:, : n * n] = np.einsum("ia,bi->iba", W, V).reshape(n, n * n)
-    gs = g[:, free] / d[None, :]
-    sol = np.linalg.solve(H + S @ S.T, gs.T)
-    var = np.real(np.sum(gs.conj() * sol.T, axis=1)) / 2.0
+    cov = covariance(model, data, fixed, warn=False)
+    lam, std = cov.pole_std(0.0, return_poles=True)
     if model.Ts is None:
         scale = np.abs(lam)
     else:
         scale = np.abs(lam * np.log(lam.astype(complex)))
-    return np.sqrt(np.maximum(var, 0.0)) / np.maximum(scale, 1e-300)
+    return std / np.maximum(scale, 1e-300)

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array
+from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.data import z_points
 from lpvid.frozen import lti_frf
@@ -220,6 +221,7 @@ def _prepare(
     return models, pts, basis, phi, Ts, balanced, z_points(f, Ts)
 
 
+@single_blas
 def smile_candidates(
     local_models: Any,
     p: ArrayLike | None = None,
@@ -276,6 +278,7 @@ def _candidates(
     return out, failed
 
 
+@single_blas
 def smile(
     local_models: Any,
     p: ArrayLike | None = None,

@@ -18,6 +18,12 @@ frf_fit
 magnitude_surface
     Magnitude and phase of the model over frequency and scheduling (Figs. 3
     and 7).
+frf_band
+    Model FRF with its uncertainty band (from :func:`lpvid.covariance`) and
+    the measured FRF, at identification or validation points.
+frf_std_map
+    The band relative to the model FRF over frequency and scheduling: how
+    the uncertainty grows between the measured points.
 group_norms
     Relative group magnitudes of one or several models, per matrix and basis
     function.
@@ -27,10 +33,19 @@ save
     Write a figure to PNG or SVG, whole or not at all.
 """
 
+from lpvid.plots.band import frf_band, frf_std_map
 from lpvid.plots.bars import group_norms
 from lpvid.plots.files import save
 from lpvid.plots.frf import frf_fit
 from lpvid.plots.path import accuracy_path
 from lpvid.plots.surface import magnitude_surface
 
-__all__ = ["accuracy_path", "frf_fit", "group_norms", "magnitude_surface", "save"]
+__all__ = [
+    "accuracy_path",
+    "frf_band",
+    "frf_fit",
+    "frf_std_map",
+    "group_norms",
+    "magnitude_surface",
+    "save",
+]

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from lpvid._files import mat_variables
 from lpvid.readers.records import COHERENCE, FRF, VARIANCE, Channel, FileError, Record, hz_per_unit
 
 __all__ = ["read_mat"]
@@ -56,15 +57,11 @@ def read_mat(path: Path, variable: str | None = None) -> tuple[list[Record], flo
     FileError
         When the file cannot be read or lacks a field (the message names it).
     """
-    from scipy.io import loadmat
-
     name = path.name
     try:
-        raw = {k: v for k, v in loadmat(path).items() if not k.startswith("__")}
-    except NotImplementedError as exc:  # scipy's answer to -v7.3 files
-        raise FileError(f"{name}: a MATLAB -v7.3 (HDF5) file; save it with -v7") from exc
-    except (OSError, ValueError, TypeError) as exc:
-        raise FileError(f"{name}: not a readable .mat file ({exc})") from exc
+        raw = mat_variables(path)
+    except ValueError as exc:
+        raise FileError(str(exc)) from exc
     fields, var = _fields(raw, name, variable)
     where = name if var is None else f"{name}, {var}"
     prefix = "" if var is None else f"{var}."

@@ -1,0 +1,224 @@
+"""The scale ladder: identify() on problems from the paper's gantry to industrial MIMO stages.
+
+Each rung is a lightly damped flexible system whose mode frequencies and
+shapes move with the scheduling parameter, measured as noisy FRFs (40 dB,
+known sigma) at N points with validation data between them, and identified
+with ``lpvid.identify(data, n, basis, validation=...)`` as a user runs it.
+For every rung it prints the time of every identify stage, the mean LM
+iteration and cone step (with Clarabel's interior-point iterations), the
+number of steps, the chosen model's V_NLS and validation V_NLS against their
+noise floors and the groups kept, and the peak memory of the process.
+
+Each rung runs in a fresh process (peak memory is per rung). The machines
+are shared and noisy: compare medians over --repeat runs.
+
+Run: python benches/bench_scale.py [--rungs gantry n10 ...] [--repeat 3] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+import lpvid
+
+
+@dataclass(frozen=True)
+class Rung:
+    """One problem size."""
+
+    name: str
+    n: int
+    l: int
+    r: int
+    nb: int
+    points: int
+    lines: int
+    note: str
+
+
+RUNGS = {
+    "gantry": None,  # the built-in data set (lpvid.datasets.gantry())
+    "n10": Rung("n10", 10, 2, 2, 2, 7, 400, "n=10, 2x2, Nb=2, N=7, F=400"),
+    "n16": Rung("n16", 16, 2, 2, 4, 9, 500, "n=16, 2x2, Nb=4, N=9, F=500"),
+    "points25": Rung("points25", 6, 2, 1, 4, 25, 300, "gantry size, N=25, F=300"),
+    "lines3000": Rung("lines3000", 6, 2, 1, 4, 5, 3000, "gantry size, N=5, F=3000"),
+    "n24": Rung("n24", 24, 3, 3, 3, 9, 1000, "n=24, 3x3, Nb=3, N=9, F=1000"),
+}
+
+
+def flexible_system(rung: Rung, seed: int = 0):
+    """A modal flexible system: ``n/2`` lightly damped modes moving with p in [-1, 1].
+
+    Mode k has natural frequency ``w_k(s) = w_k0 (1 + a_k s + b_k s^2)``
+    (a_k up to +-25 %), damping 1-3 %, and input and output shapes that
+    change linearly with s. Returns ``physics(s) -> (A, B, C, D)`` in
+    continuous time (positions and velocities of the modes as outputs mix).
+    """
+    rng = np.random.default_rng(seed)
+    modes = rung.n // 2
+    w0 = 2 * np.pi * np.geomspace(20.0, 250.0, modes) * (1 + 0.05 * rng.standard_normal(modes))
+    a = rng.uniform(-0.25, 0.25, modes)
+    b = rng.uniform(-0.05, 0.05, modes)
+    zeta = rng.uniform(0.01, 0.03, modes)
+    bin0 = rng.standard_normal((modes, rung.r))
+    bin1 = 0.3 * rng.standard_normal((modes, rung.r))
+    cout0 = rng.standard_normal((rung.l, modes))
+    cout1 = 0.3 * rng.standard_normal((rung.l, modes))
+    mix = rng.uniform(0.2, 1.0, (rung.l, modes))
+
+    def physics(s: float):
+        A = np.zeros((rung.n, rung.n))
+        B = np.zeros((rung.n, rung.r))
+        C = np.zeros((rung.l, rung.n))
+        for k in range(modes):
+            w = w0[k] * (1 + a[k] * s + b[k] * s * s)
+            i = 2 * k
+            A[i : i + 2, i : i + 2] = [[0.0, 1.0], [-(w**2), -2 * zeta[k] * w]]
+            B[i + 1] = (bin0[k] + s * bin1[k]) * w
+            c = cout0[:, k] + s * cout1[:, k]
+            C[:, i] = c * w * (1 - mix[:, k])
+            C[:, i + 1] = c * mix[:, k]
+        return A, B, C, np.zeros((rung.l, rung.r))
+
+    return physics
+
+
+def measured(rung: Rung, physics, p: np.ndarray, rng: np.random.Generator) -> lpvid.FrfData:
+    """Noisy FRFs (40 dB, known sigma) of the continuous-time system.
+
+    In continuous time the modal matrices are polynomials of degree 2 in s,
+    which every rung's basis represents: the data can be fitted to the noise
+    floor.
+    """
+    freqs = np.linspace(10.0, 400.0, rung.lines)
+    z = 2j * np.pi * freqs
+    G = np.stack([lpvid.frozen.lti_frf(*physics(float(s)), z) for s in p])
+    rms = np.sqrt(np.mean(np.abs(G) ** 2, axis=1, keepdims=True))
+    sigma = np.broadcast_to(0.01 * rms, G.shape)
+    noise = (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
+    return lpvid.FrfData(p, freqs, G + sigma * noise, sigma)
+
+
+def problem(name: str):
+    """Identification data, validation data, order and basis of a rung."""
+    if name == "gantry":
+        ds = lpvid.datasets.gantry()
+        return ds.identification, ds.validation, ds.order, ds.basis, "the built-in gantry"
+    rung = RUNGS[name]
+    assert rung is not None
+    physics = flexible_system(rung)
+    rng = np.random.default_rng(1)
+    p = np.linspace(-1.0, 1.0, rung.points)
+    mid = (p[:-1] + p[1:]) / 2
+    val = mid[:: max(1, mid.size // 4)][:4]
+    data = measured(rung, physics, p, rng)
+    validation = measured(rung, physics, val, rng)
+    basis = lpvid.Polynomial(rung.nb, domain=(-1.0, 1.0))
+    return data, validation, rung.n, basis, rung.note
+
+
+def run_one(name: str) -> dict:
+    """One identify() of a rung, with its figures (in this process)."""
+    data, validation, n, basis, note = problem(name)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = lpvid.identify(data, n, basis, validation=validation)
+    total = time.perf_counter() - t0
+    lm = [row for c in result.candidates if c.fit for row in c.fit.history]
+    socp = [row for r in result.path for row in r.history]
+    e = result.entry
+    return {
+        "rung": name,
+        "note": note,
+        "free": int(lpvid.free_mask(result.model).sum()),
+        "identify_s": total,
+        "timings": result.timings,
+        "lm_steps": len(lm),
+        "lm_iter_s": statistics.mean(r["seconds"] for r in lm) if lm else float("nan"),
+        "cone_steps": len(socp),
+        "cone_step_s": statistics.mean(r["seconds"] for r in socp) if socp else float("nan"),
+        "ip_iterations": statistics.mean(r["solver_iterations"] for r in socp) if socp else 0,
+        "steps_per_gamma": [r.n_iter for r in result.path],
+        "vnls_ratio": e.vnls / e.noise_floor,
+        "validation_ratio": e.validation_vnls / e.validation_floor,
+        "groups": e.n_groups,
+        "nonzero_groups": e.nonzero_groups,
+        "chosen_gamma": e.gamma,
+        "start": result.start,
+        "warnings": [str(w.message) for w in caught],
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+def report(runs: list[dict]) -> None:
+    first = runs[0]
+    med = {
+        k: statistics.median(r[k] for r in runs)
+        for k in ("identify_s", "lm_iter_s", "cone_step_s", "ip_iterations", "peak_mb")
+    }
+    stages = {
+        k: statistics.median(r["timings"].get(k, 0.0) for r in runs) for k in first["timings"]
+    }
+    print(f"\n== {first['rung']}: {first['note']} ({first['free']} free parameters)")
+    print(
+        f"identify {med['identify_s']:.2f} s (median of {len(runs)}: "
+        + ", ".join(f"{r['identify_s']:.2f}" for r in runs)
+        + ")"
+    )
+    print("stages: " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items()))
+    print(
+        f"LM: {first['lm_steps']} steps in the starts, {1e3 * med['lm_iter_s']:.1f} ms each; "
+        f"cone: {first['cone_steps']} steps {first['steps_per_gamma']}, "
+        f"{1e3 * med['cone_step_s']:.1f} ms each, {med['ip_iterations']:.1f} IP iterations"
+    )
+    print(
+        f"chosen: gamma {first['chosen_gamma']:g} from {first['start']}, {first['groups']} groups "
+        f"{first['nonzero_groups']}, V/floor {first['vnls_ratio']:.4f}, "
+        f"validation V/floor {first['validation_ratio']:.4f}"
+    )
+    print(f"peak memory {med['peak_mb']:.0f} MB")
+    for w in first["warnings"]:
+        print(f"warning: {w}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rungs", nargs="+", default=list(RUNGS), choices=list(RUNGS))
+    parser.add_argument("--repeat", type=int, default=1)
+    parser.add_argument("--json", help="write every run's figures to this file")
+    parser.add_argument("--one", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one:
+        print(json.dumps(run_one(args.one)))
+        return
+    everything = {}
+    for name in args.rungs:
+        runs = []
+        for _ in range(args.repeat):
+            out = subprocess.run(
+                [sys.executable, __file__, "--one", name],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        report(runs)
+        everything[name] = runs
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(everything, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,220 @@
+"""Refine many starts for the price of a few: staged Levenberg-Marquardt runs raced by halving.
+
+Every initial candidate is a :class:`Runner`: a model and the stages of
+:func:`lpvid.fit_nls` it goes through (one for a SMILE start, several for a
+global start that frees the groups degree by degree). :func:`race` gives all
+runners a few steps, drops the hopeless (not finite) and the worse half (unstable
+between the points first, then by validation V_NLS, or identification V_NLS
+without validation data), gives the others twice as many steps, and so on
+(successive halving), until the best few are refined to convergence.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lpvid.cost import vnls_value as vnls
+from lpvid.data import FrfData
+from lpvid.fit import fit_nls, raise_if_interrupted
+from lpvid.frozen import frozen_stable
+from lpvid.model import LpvModel
+from lpvid.results import FitResult
+from lpvid.schedule import between_points
+
+__all__ = ["ROUNDS", "Runner", "Stage", "race"]
+
+#: Levenberg-Marquardt steps each runner still in the race gets per round,
+#: before the worse half is dropped; the last few are then refined to
+#: convergence.
+ROUNDS = (10, 20, 40)
+
+
+@dataclass
+class Stage:
+    """One fit of a runner: which parameters stay fixed, and a label."""
+
+    label: str
+    fixed: NDArray[np.bool_]
+
+
+def merge(a: FitResult | None, b: FitResult) -> FitResult:
+    """Two consecutive Levenberg-Marquardt runs as one (``b`` continues ``a``)."""
+    if a is None:
+        return b
+    rows = a.history + b.history
+    lm = [r["seconds"] for r in rows if r["kind"] == "lm"]
+    return FitResult(
+        model=b.model,
+        vnls=b.vnls,
+        noise_floor=b.noise_floor,
+        objective=b.objective,
+        history=rows,
+        timings={
+            "lm_iter_s": float(np.mean(lm)) if lm else float("nan"),
+            "socp_iter_s": float("nan"),
+            "total_s": a.timings["total_s"] + b.timings["total_s"],
+        },
+        converged=b.converged,
+        stop=b.stop,
+        message=b.message,
+        interrupted=b.interrupted,
+        n_rejected=a.n_rejected + b.n_rejected,
+    )
+
+
+@dataclass
+class Runner:
+    """A start on its way to a refined candidate.
+
+    Attributes
+    ----------
+    name, note : str
+        The candidate's name and what was done, in words.
+    model : LpvModel
+        The current model.
+    stages : list of Stage
+        The fits to run in order.
+    max_iter : int
+        Most steps per stage.
+    start : LpvModel or None
+        The model the last stage started from (known once it starts).
+    fit : FitResult or None
+        The last stage's fit so far (all of its steps).
+    history : list of dict
+        One entry per finished stage: ``free_groups`` (its label), ``vnls``, ``n_iter``.
+    done : bool
+        Every stage converged or used its steps.
+    dropped : int or None
+        Steps taken when the race dropped it; None while it runs or once done.
+    seconds : float
+        Time spent fitting it.
+    """
+
+    name: str
+    model: LpvModel
+    stages: list[Stage]
+    max_iter: int = 100
+    note: str = ""
+    start: LpvModel | None = None
+    fit: FitResult | None = None
+    history: list[dict[str, Any]] = field(default_factory=list)
+    done: bool = False
+    dropped: int | None = None
+    seconds: float = 0.0
+    _stage: int = 0
+    _used: int = 0
+    _lambda: float = 1e-2
+
+    def __post_init__(self) -> None:
+        if len(self.stages) == 1:
+            self.start = self.model
+
+    def current_vnls(self, data: FrfData) -> float:
+        """V_NLS of the current model on the identification data."""
+        return float(self.fit.vnls) if self.fit is not None else vnls(self.model, data)
+
+    @property
+    def steps(self) -> int:
+        """Levenberg-Marquardt steps taken in all stages."""
+        return sum(h["n_iter"] for h in self.history) + (self.fit.n_iter if self.fit else 0)
+
+    def advance(self, data: FrfData, budget: int) -> None:
+        """Take up to ``budget`` more steps, moving through the stages."""
+        while budget > 0 and not self.done:
+            stage = self.stages[self._stage]
+            steps = min(budget, self.max_iter - self._used)
+            t0 = time.perf_counter()
+            fit = fit_nls(
+                self.model, data, stage.fixed, max_iter=steps, lambda0=self._lambda, warn=False
+            )
+            raise_if_interrupted(fit)
+            self.seconds += time.perf_counter() - t0
+            self.fit = merge(self.fit, fit)
+            self.model = fit.model
+            self._used += fit.n_iter
+            budget -= max(fit.n_iter, 1)
+            if fit.history:
+                self._lambda = max(float(fit.history[-1]["lambda"]), 1e-6)
+            if fit.stop == "max_iterations" and self._used < self.max_iter:
+                continue
+            self.history.append(
+                {"free_groups": stage.label, "vnls": float(fit.vnls), "n_iter": self._used}
+            )
+            if self._stage + 1 == len(self.stages):
+                self.done = True
+                break
+            self._stage += 1
+            self._used, self.fit, self._lambda = 0, None, 1e-2
+            if self._stage + 1 == len(self.stages):
+                self.start = self.model
+
+
+def _rank(
+    runners: Sequence[Runner], data: FrfData, validation: FrfData | None
+) -> list[tuple[bool, float, int]]:
+    """Sort keys: unstable between the points last, then the (validation) V_NLS."""
+    between = between_points(data.p)
+    keys = []
+    for k, r in enumerate(runners):
+        cost = vnls(r.model, validation) if validation is not None else r.current_vnls(data)
+        unstable = not frozen_stable(r.model, between)
+        keys.append((unstable, cost if np.isfinite(cost) else math.inf, k))
+    return keys
+
+
+def race(
+    runners: Sequence[Runner],
+    data: FrfData,
+    validation: FrfData | None = None,
+    *,
+    rounds: Sequence[int] = ROUNDS,
+    keep: int = 2,
+    step: Callable[[Runner], None] | None = None,
+) -> list[Runner]:
+    """Successive halving over the runners; returns them all (dropped ones marked).
+
+    Parameters
+    ----------
+    runners : sequence of Runner
+    data : FrfData
+        Identification data.
+    validation : FrfData, optional
+        Ranks the runners by validation V_NLS when given.
+    rounds : sequence of int
+        Steps per runner in each round; after each, the worse half is dropped
+        (at least ``keep`` stay). The runners left after the last round run
+        to convergence.
+    keep : int
+        Fewest runners refined to convergence.
+    step : callable, optional
+        Called with each runner after each of its rounds (progress).
+    """
+    alive = [r for r in runners if not r.done]
+    for budget in rounds:
+        for r in alive:
+            r.advance(data, budget)
+            if step is not None:
+                step(r)
+        keys = sorted(_rank(alive, data, validation))
+        finite = [k for k in keys if math.isfinite(k[1])] or keys
+        n_keep = max(keep, math.ceil(len(alive) / 2))
+        stay = {k[2] for k in finite[:n_keep]}
+        for k, r in enumerate(alive):
+            if k not in stay and not r.done:
+                r.dropped = r.steps
+        alive = [r for k, r in enumerate(alive) if k in stay and not r.done]
+        if not alive:
+            break
+    for r in alive:
+        while not r.done:
+            r.advance(data, r.max_iter)
+        if step is not None:
+            step(r)
+    return list(runners)

@@ -1,0 +1,33 @@
+"""Trusting a model between the points: parameter covariance, FRF bands, stability over the range.
+
+The functions are exported at the top level: :func:`lpvid.covariance`,
+:func:`lpvid.stability`, :func:`lpvid.refit`; ``stable=True`` of
+:func:`lpvid.fit_nls`, :func:`lpvid.fit_l21` and :func:`lpvid.identify`
+keeps stability during a fit.
+
+Modules
+-------
+covariance
+    :class:`Covariance`: the first-order parameter covariance, FRF and pole
+    standard deviations, and its rank rule.
+refit
+    Refit on the support of an l2,1 estimate (dropped groups fixed at zero).
+stability
+    :class:`StabilityReport`: stability of every frozen model on the
+    continuum of the scheduling range.
+lyapunov
+    :class:`LyapunovCertificate`: a common quadratic Lyapunov function over
+    the range as a linear matrix inequality, and what it certifies.
+enforce
+    How fits keep the frozen models stable.
+ranges
+    Scheduling ranges for stability statements, and ``A(p)`` as a polynomial.
+steps
+    The steps :func:`lpvid.identify` adds (stable start, refit, covariance).
+"""
+
+from lpvid.trust.covariance import Covariance, band_radius
+from lpvid.trust.lyapunov import LyapunovCertificate
+from lpvid.trust.stability import StabilityReport
+
+__all__ = ["Covariance", "LyapunovCertificate", "StabilityReport", "band_radius"]

@@ -1,0 +1,115 @@
+//! Uncertainty and stability pieces for Python: the LTI Jacobian of the
+//! frozen response and the check points of a scheduling range.
+
+use super::convert::{complex_vec, real_vec, to_py};
+use crate::error::invalid;
+use crate::layout::Shape;
+use crate::sensitivity::lti_jacobian;
+use crate::stable::{margin, FrozenRange};
+use numpy::{Complex64, PyArray1, PyReadonlyArray1};
+use pyo3::prelude::*;
+
+/// Jacobian of the frozen response with respect to the frozen LTI
+/// parameters, flat complex, row-major `(N, F, l, r, lti_len)`.
+#[pyfunction]
+#[pyo3(name = "lti_jacobian")]
+#[allow(clippy::too_many_arguments)]
+fn lti_jacobian_py<'py>(
+    py: Python<'py>,
+    n: usize,
+    r: usize,
+    l: usize,
+    nb: usize,
+    theta: PyReadonlyArray1<'py, f64>,
+    basis: PyReadonlyArray1<'py, f64>,
+    n_points: usize,
+    z: PyReadonlyArray1<'py, Complex64>,
+) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
+    let shape = Shape::new(n, r, l, nb)?;
+    let (theta, basis, z) = (real_vec(&theta), real_vec(&basis), complex_vec(&z));
+    let out = py.detach(|| lti_jacobian(&shape, &theta, &basis, n_points, &z))?;
+    Ok(to_py(py, out))
+}
+
+/// Stability margin from poles (the core's rule), for the test that
+/// compares it with Python's.
+#[pyfunction]
+#[pyo3(name = "stability_margin")]
+fn stability_margin_py(poles: PyReadonlyArray1<'_, Complex64>, discrete: bool) -> f64 {
+    margin(&complex_vec(&poles), discrete)
+}
+
+/// Check points of a scheduling range for fits that keep stability:
+/// `basis` holds `psi_1..psi_Nb` at `n_points` points, row-major; every
+/// `stride`-th point is checked first; a margin below `tol` is unstable.
+#[pyclass(name = "FrozenRange", module = "lpvid._core", frozen)]
+pub struct PyFrozenRange {
+    pub(crate) inner: FrozenRange,
+    pub(crate) tol: f64,
+}
+
+#[pymethods]
+impl PyFrozenRange {
+    #[new]
+    fn new(
+        nb: usize,
+        basis: PyReadonlyArray1<'_, f64>,
+        n_points: usize,
+        stride: usize,
+        discrete: bool,
+        tol: f64,
+    ) -> PyResult<Self> {
+        if !(tol.is_finite() && tol >= 0.0) {
+            return Err(invalid("tol", format!("expected a finite number >= 0, got {tol}")).into());
+        }
+        let inner = FrozenRange::new(nb, &real_vec(&basis), n_points, stride, discrete)?;
+        Ok(PyFrozenRange { inner, tol })
+    }
+
+    /// Number of check points.
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    /// The margin at every check point.
+    fn margins<'py>(
+        &self,
+        py: Python<'py>,
+        n: usize,
+        r: usize,
+        l: usize,
+        theta: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let theta = real_vec(&theta);
+        let shape = Shape::new(n, r, l, self.nb())?;
+        let out = py.detach(|| self.inner.margins(&shape, &theta))?;
+        Ok(to_py(py, out))
+    }
+
+    /// `(index, margin)` of the smallest margin the coarse-then-fine search finds.
+    fn worst(
+        &self,
+        py: Python<'_>,
+        n: usize,
+        r: usize,
+        l: usize,
+        theta: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<(usize, f64)> {
+        let theta = real_vec(&theta);
+        let shape = Shape::new(n, r, l, self.nb())?;
+        Ok(py.detach(|| self.inner.worst(&shape, &theta, self.tol))?)
+    }
+}
+
+impl PyFrozenRange {
+    fn nb(&self) -> usize {
+        self.inner.nb()
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(lti_jacobian_py, m)?)?;
+    m.add_function(wrap_pyfunction!(stability_margin_py, m)?)?;
+    m.add_class::<PyFrozenRange>()?;
+    Ok(())
+}

@@ -1,0 +1,191 @@
+//! The cone program of one step in Clarabel's standard form, and the
+//! Clarabel solver kept between the steps of a fit.
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+/// A sparse matrix by columns (Clarabel's CSC layout).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct Csc {
+    pub(super) colptr: Vec<usize>,
+    pub(super) rowval: Vec<usize>,
+    pub(super) values: Vec<f64>,
+}
+
+impl Csc {
+    /// Start a matrix; add columns with [`Csc::push`] in order.
+    pub(super) fn new() -> Self {
+        Csc {
+            colptr: vec![0],
+            ..Csc::default()
+        }
+    }
+
+    /// Append one column from `(row, value)` pairs (rows ascending).
+    pub(super) fn push(&mut self, entries: impl IntoIterator<Item = (usize, f64)>) {
+        for (r, v) in entries {
+            self.rowval.push(r);
+            self.values.push(v);
+        }
+        self.colptr.push(self.rowval.len());
+    }
+
+    fn to_clarabel(&self, m: usize) -> CscMatrix<f64> {
+        CscMatrix::new(
+            m,
+            self.colptr.len() - 1,
+            self.colptr.clone(),
+            self.rowval.clone(),
+            self.values.clone(),
+        )
+    }
+}
+
+/// A cone of the program.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Cone {
+    /// A second-order cone of the given dimension.
+    Soc(usize),
+}
+
+/// The numbers of one cone program in Clarabel's form:
+/// minimise `1/2 x'Px + q'x` subject to `Ax + s = b`, `s` in the cones.
+pub(super) struct Program {
+    /// Upper triangle of P.
+    pub(super) p: Csc,
+    pub(super) q: Vec<f64>,
+    pub(super) a: Csc,
+    pub(super) b: Vec<f64>,
+    pub(super) cones: Vec<Cone>,
+}
+
+/// What fixes the sparsity pattern of a program.
+type Key = (
+    Vec<usize>,
+    Vec<usize>,
+    Vec<usize>,
+    Vec<usize>,
+    Vec<Cone>,
+    usize,
+);
+
+impl Program {
+    /// What fixes the sparsity pattern: a solver built for one program can
+    /// take the numbers of another with the same key.
+    fn key(&self) -> Key {
+        (
+            self.p.colptr.clone(),
+            self.p.rowval.clone(),
+            self.a.colptr.clone(),
+            self.a.rowval.clone(),
+            self.cones.clone(),
+            self.b.len(),
+        )
+    }
+}
+
+/// What a cone step keeps of Clarabel's solution.
+pub(super) struct Solved {
+    pub(super) x: Vec<f64>,
+    pub(super) status: SolverStatus,
+    pub(super) iterations: u32,
+}
+
+impl From<&clarabel::solver::DefaultSolution<f64>> for Solved {
+    fn from(s: &clarabel::solver::DefaultSolution<f64>) -> Self {
+        Solved {
+            x: s.x.clone(),
+            status: s.status,
+            iterations: s.iterations,
+        }
+    }
+}
+
+/// A Clarabel solver kept between cone steps of one fit. The steps of a
+/// fit share their sparsity pattern, so the solver is built once (ordering,
+/// symbolic factorisation, equilibration) and later steps only overwrite
+/// its numbers. Every solve still starts cold.
+pub struct ConeSolver {
+    tol: f64,
+    cached: Option<(Key, DefaultSolver<f64>)>,
+}
+
+impl Default for ConeSolver {
+    fn default() -> Self {
+        ConeSolver::new(DEFAULT_CONE_TOL)
+    }
+}
+
+/// Clarabel's default accuracy: enough for a step that is accepted or not
+/// on the true objective.
+pub const DEFAULT_CONE_TOL: f64 = 1e-8;
+
+impl std::fmt::Debug for ConeSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ConeSolver")
+            .field("cached", &self.cached.is_some())
+            .finish()
+    }
+}
+
+impl ConeSolver {
+    /// A solver whose cone programs are solved to `tol` (gap and
+    /// feasibility); below the default, Clarabel's iterative refinement is
+    /// switched on as well.
+    pub fn new(tol: f64) -> Self {
+        ConeSolver { tol, cached: None }
+    }
+
+    pub(super) fn run(&mut self, prog: &Program) -> Result<Solved, String> {
+        let key = prog.key();
+        let reuse = matches!(&self.cached, Some((k, _)) if *k == key);
+        let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<_, String> {
+            if reuse {
+                if let Some((_, solver)) = self.cached.as_mut() {
+                    solver
+                        .update_data(&prog.p.values, &prog.q, &prog.a.values, &prog.b)
+                        .map_err(|e| format!("data update failed: {e}"))?;
+                    solver.solve();
+                    return Ok(Solved::from(&solver.solution));
+                }
+            }
+            let n = prog.q.len();
+            let p = prog.p.to_clarabel(n);
+            let a = prog.a.to_clarabel(prog.b.len());
+            let cones: Vec<SupportedConeT<f64>> = prog
+                .cones
+                .iter()
+                .map(|&c| match c {
+                    Cone::Soc(d) => SupportedConeT::SecondOrderConeT(d),
+                })
+                .collect();
+            let settings = DefaultSettingsBuilder::default()
+                .verbose(false)
+                .max_iter(200)
+                .max_threads(1)
+                .tol_gap_abs(self.tol)
+                .tol_gap_rel(self.tol)
+                .tol_feas(self.tol)
+                .iterative_refinement_enable(self.tol < DEFAULT_CONE_TOL)
+                .presolve_enable(false)
+                .build()
+                .map_err(|e| format!("settings: {e}"))?;
+            let mut solver = DefaultSolver::new(&p, &prog.q, &a, &prog.b, &cones, settings)
+                .map_err(|e| format!("setup failed: {e}"))?;
+            solver.solve();
+            let sol = Solved::from(&solver.solution);
+            self.cached = Some((key, solver));
+            Ok(sol)
+        }));
+        match outcome {
+            Ok(r) => r,
+            Err(_) => {
+                self.cached = None;
+                Err("the cone solver panicked".to_string())
+            }
+        }
+    }
+}

@@ -1,0 +1,144 @@
+"""Arrays in other memory layouts give the same numbers as C-ordered ones.
+
+Fortran order, strided views and non-native byte order, at every place where
+arrays enter lpvid and cross into the core: FrfData, LpvModel, the core's
+Problem (through build_problem and directly), simulate and frf. Same
+numbers means equal to the last bit: the core must read the values, not the
+memory.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid import _core
+from lpvid.cost import build_problem, gauss_newton
+from lpvid.testing import noisy_data, random_lpv
+
+
+def fortran(a):
+    return np.asfortranarray(a)
+
+
+def strided(a):
+    """The same values as a view with gaps: every other entry of a wider array."""
+    wide = np.zeros((*a.shape[:-1], 2 * a.shape[-1]), dtype=a.dtype)
+    wide[..., ::2] = a
+    return wide[..., ::2]
+
+
+def swapped(a):
+    """The same values in the other byte order."""
+    return a.astype(a.dtype.newbyteorder())
+
+
+def reversed_view(a):
+    """The same values through a view with negative strides."""
+    return np.flip(np.flip(a.copy(), axis=0).copy(), axis=0)
+
+
+LAYOUTS = {"fortran": fortran, "strided": strided, "swapped": swapped, "reversed": reversed_view}
+
+
+@pytest.fixture
+def case(rng):
+    model = random_lpv(rng, n=3, r=2, l=2, nb=2, Ts=0.01)
+    data = noisy_data(model, np.array([0.0, 0.3, 0.7, 1.0]), np.linspace(1, 40, 9), rng)
+    start = model.with_theta(model.theta + 0.01 * rng.normal(size=model.theta.size))
+    return start, data
+
+
+def relaid_data(data, layout):
+    return lpvid.FrfData(
+        layout(data.p), layout(data.freqs_hz), layout(data.G), layout(data.sigma), Ts=data.Ts
+    )
+
+
+def relaid_model(model, layout):
+    return lpvid.LpvModel(
+        *(layout(np.array(x)) for x in model.matrices().values()),
+        basis=model.basis,
+        Ts=model.Ts,
+        p_range=model.p_range,
+    )
+
+
+@pytest.mark.parametrize("layout", LAYOUTS.values(), ids=LAYOUTS.keys())
+def test_frf_data_and_model_in_other_layouts_give_the_same_fit_quantities(case, layout):
+    start, data = case
+    data2, start2 = relaid_data(data, layout), relaid_model(start, layout)
+    for name in ("p", "freqs_hz", "G", "sigma"):
+        np.testing.assert_array_equal(getattr(data2, name), getattr(data, name))
+    assert start2.theta.tobytes() == start.theta.tobytes()
+    assert lpvid.vnls(start2, data2) == lpvid.vnls(start, data)
+    assert lpvid.residual(start2, data2).tobytes() == lpvid.residual(start, data).tobytes()
+    v1, g1, h1 = gauss_newton(start, data)
+    v2, g2, h2 = gauss_newton(start2, data2)
+    assert v1 == v2 and g1.tobytes() == g2.tobytes() and h1.tobytes() == h2.tobytes()
+    # five steps of the same fit (stopped short: both say so)
+    with pytest.warns(lpvid.ConvergenceWarning):
+        fit1 = lpvid.fit_nls(start, data, max_iter=5)
+    with pytest.warns(lpvid.ConvergenceWarning):
+        fit2 = lpvid.fit_nls(start2, data2, max_iter=5)
+    assert fit1.model.theta.tobytes() == fit2.model.theta.tobytes()
+
+
+def test_core_problem_reads_strided_arrays_by_value(case):
+    """The binding itself, fed strided 1-D views of what build_problem passes."""
+    start, data = case
+    problem = build_problem(start, data)
+    psi = start.basis_values(data.p).ravel()
+    n, r, l, nb = start.shape
+    args = (data.z, data.G.ravel(), data.sigma.ravel(), psi)
+    views = [strided(np.ascontiguousarray(a)) for a in args]
+    assert not any(v.flags.c_contiguous for v in views if v.size > 1)
+    other = _core.Problem(n, r, l, nb, data.n_points, *views)
+    theta = strided(start.theta)
+    assert other.vnls(theta) == problem.vnls(start.theta)
+    assert other.residual(theta).tobytes() == problem.residual(start.theta).tobytes()
+    free = strided(np.ones(theta.size, dtype=bool))
+    a, b = other.gauss_newton(theta, free), problem.gauss_newton(start.theta, None)
+    assert all(x.tobytes() == y.tobytes() for x, y in zip(a[1:], b[1:], strict=True))
+
+
+@pytest.mark.parametrize("layout", LAYOUTS.values(), ids=LAYOUTS.keys())
+def test_frf_in_other_layouts(case, layout):
+    start, data = case
+    f, p = data.freqs_hz, data.p
+    expected = start.frf(f, p)
+    assert start.frf(layout(f), layout(p)).tobytes() == expected.tobytes()
+    assert relaid_model(start, layout).frf(f, p).tobytes() == expected.tobytes()
+
+
+@pytest.mark.parametrize("layout", LAYOUTS.values(), ids=LAYOUTS.keys())
+def test_frf_with_two_scheduling_parameters_in_other_layouts(rng, layout):
+    basis = lpvid.Polynomial(2, domain=[(0, 1), (-1, 1)])
+    k = len(basis) + 1
+    model = lpvid.LpvModel(
+        0.1 * rng.normal(size=(k, 2, 2)),
+        rng.normal(size=(k, 2, 1)),
+        rng.normal(size=(k, 1, 2)),
+        basis=basis,
+        Ts=None,
+    )
+    p = rng.uniform(0, 1, size=(5, 2))
+    f = np.linspace(0.1, 5.0, 7)
+    assert model.frf(f, layout(p)).tobytes() == model.frf(f, p).tobytes()
+
+
+@pytest.mark.parametrize("layout", LAYOUTS.values(), ids=LAYOUTS.keys())
+@pytest.mark.parametrize("Ts", [0.01, None])
+def test_simulate_in_other_layouts(rng, layout, Ts):
+    model = random_lpv(rng, n=3, r=2, l=2, nb=2, Ts=Ts)
+    T = 200
+    u = rng.normal(size=(T, 2))
+    p = 0.5 + 0.4 * np.sin(np.linspace(0, 6, T))
+    x0 = rng.normal(size=3)
+    dt = None if Ts else 1e-2
+    y, x = model.simulate(u, p, x0, dt=dt, return_states=True)
+    y2, x2 = model.simulate(layout(u), layout(p), layout(x0), dt=dt, return_states=True)
+    assert y2.tobytes() == y.tobytes() and x2.tobytes() == x.tobytes()
+    y3 = relaid_model(model, layout).simulate(u, p, x0, dt=dt)
+    assert y3.tobytes() == y.tobytes()

@@ -1,0 +1,236 @@
+"""Stability over the scheduling range: the continuum, the margin, the quadratic certificate."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid import _core
+from lpvid.frozen import frozen_A, stability_margin
+from lpvid.testing import random_lpv
+from lpvid.trust.lyapunov import quadratic_stability
+from lpvid.trust.stability import margins
+
+
+def _scalar(coefs, Ts=1.0, domain=(0.0, 1.0)):
+    """x+ = a(p) x with a(p) = sum_i coefs[i] s^i, s the basis variable."""
+    k = len(coefs)
+    basis = lpvid.Polynomial(k - 1, domain=domain)
+    A = np.array(coefs, dtype=float).reshape(k, 1, 1)
+    B = np.zeros((k, 1, 1))
+    B[0] = 1.0
+    return lpvid.LpvModel(A, B, B.copy(), basis=basis, Ts=Ts)
+
+
+def _affine(A1, A2, Ts):
+    """A(p) from A1 at p = 0 to A2 at p = 1 (s = 2p - 1)."""
+    n = A1.shape[0]
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))
+    A = np.array([(A1 + A2) / 2, (A2 - A1) / 2])
+    B = np.zeros((2, n, 1))
+    B[0, 0] = 1.0
+    C = np.zeros((2, 1, n))
+    C[0, 0, 0] = 1.0
+    return lpvid.LpvModel(A, B, C, basis=basis, Ts=Ts)
+
+
+@pytest.mark.parametrize("discrete", [True, False])
+def test_margin_rule_is_the_cores(rng, discrete):
+    for _ in range(50):
+        lam = rng.normal(size=4) + 1j * rng.normal(size=4)
+        lam = np.concatenate([lam, lam.conj()])
+        if discrete:
+            lam *= 0.6
+        py = float(stability_margin(lam, 1.0 if discrete else None))
+        assert py == pytest.approx(_core.stability_margin(lam, discrete), rel=1e-14, abs=1e-15)
+        stable = bool(np.all(lpvid.frozen.stable_poles(lam, 1.0 if discrete else None)))
+        assert (py > 0) == stable
+
+
+@pytest.mark.parametrize("Ts", [0.01, None])
+def test_core_check_points_agree_with_numpy(rng, Ts):
+    # The core's eigenvalues (nalgebra's Schur form) against LAPACK's through numpy.
+    model = random_lpv(rng, n=6, r=1, l=2, nb=3, Ts=Ts)
+    p = np.linspace(0, 1, 101)
+    pts = _core.FrozenRange(3, model.basis_values(p).ravel(), 101, 10, Ts is not None, 0.0)
+    core = pts.margins(6, 1, 2, model.theta)
+    np.testing.assert_allclose(core, margins(model, p), rtol=1e-9, atol=1e-12)
+    k, worst = pts.worst(6, 1, 2, model.theta)
+    assert worst == pytest.approx(core.min()) and k == int(np.argmin(core))
+    assert len(pts) == 101
+
+
+def test_a_narrow_unstable_window_is_found():
+    # a(s) = peak - c (s - s0)^2 with peak 1 + 1e-9: unstable for |s - s0| < 1e-4,
+    # a window of 1e-4 in p, narrower than the spacing of a 2001-point grid.
+    s0, c = 0.3123, 0.1
+    m = _scalar([1 + 1e-9 - c * s0**2, 2 * c * s0, -c])
+    rep = lpvid.stability(m, quadratic=False)
+    assert not rep.stable and rep.method == "crossings"
+    assert rep.margin == pytest.approx(-1e-9, rel=1e-3)
+    assert rep.worst_p == pytest.approx((s0 + 1) / 2, abs=1e-6)
+    # The crossings bracket the window.
+    assert np.min(np.abs(rep.crossings - (s0 + 1) / 2 + 5e-5)) < 1e-6
+    # A plain grid misses it; a dense one where it should be confirms it.
+    assert margins(m, np.linspace(0, 1, 2001)).min() > 0
+    p0 = (s0 + 1) / 2
+    assert margins(m, np.linspace(p0 - 1e-4, p0 + 1e-4, 2001)).min() < 0
+
+
+def test_continuous_time_pair_crossing_the_axis():
+    # A damped pair whose real part -0.02 + 0.05 (1 - 25 (s - 0.4)^2) is positive in a window.
+    def A(s):
+        sigma = -0.02 + 0.05 * (1 - 25 * (s - 0.4) ** 2)
+        return np.array([[sigma, 10.0], [-10.0, sigma]])
+
+    t = np.linspace(-1, 1, 3)
+    vals = np.array([A(x) for x in t])
+    coef = np.linalg.solve(np.vander(t, 3, increasing=True), vals.reshape(3, -1)).reshape(3, 2, 2)
+    basis = lpvid.Polynomial(2, domain=(-1.0, 1.0))
+    m = lpvid.LpvModel(
+        coef,
+        np.ones((3, 2, 1)) * [[[1.0], [0.0]], [[0.0], [0.0]], [[0.0], [0.0]]],
+        np.ones((3, 1, 2)) * [[[1.0, 0.0]], [[0.0, 0.0]], [[0.0, 0.0]]],
+        basis=basis,
+    )
+    rep = lpvid.stability(m, quadratic=False)
+    half = np.sqrt(0.6 / 25)  # where the real part is zero: 1 - 25 d^2 = 0.4
+    assert not rep.stable
+    assert rep.worst_p == pytest.approx(0.4, abs=1e-6)
+    assert rep.margin == pytest.approx(-0.03 / np.hypot(0.03, 10.0), rel=1e-6)
+    for edge in (0.4 - half, 0.4 + half):
+        assert np.min(np.abs(rep.crossings - edge)) < 1e-8
+    ok = lpvid.stability(m, p_range=(-1.0, 0.1), quadratic=False)
+    assert ok.stable and ok.p_range == (-1.0, 0.1)
+
+
+def test_report_fields_and_text():
+    m = _scalar([0.5, 0.45])
+    rep = lpvid.stability(m)
+    assert rep.stable and rep.discrete and rep.quadratic is True
+    assert rep.margin == pytest.approx(0.05) and rep.worst_p == pytest.approx(1.0)
+    assert "stable over p in [0, 1]" in rep.summary() and "quadratically stable" in str(rep)
+    assert rep.n_checked >= 200 and rep.seconds > 0
+
+
+def test_bad_ranges_are_named():
+    m = _scalar([0.5, 0.45])
+    with pytest.raises(
+        ValueError, match=r"^p_range: \(-0\.5, 1\) reaches outside the basis domain"
+    ):
+        lpvid.stability(m, p_range=(-0.5, 1.0))
+    with pytest.raises(ValueError, match=r"^p_range: every pair needs lo < hi"):
+        lpvid.stability(m, p_range=(1.0, 0.0))
+    with pytest.raises(ValueError, match=r"^p_range: 2 pairs given for 1 scheduling parameters"):
+        lpvid.stability(m, p_range=[(0.0, 1.0), (0.0, 1.0)])
+    free = lpvid.LpvModel(m.A, m.B, m.C, basis=lpvid.Polynomial(1), Ts=1.0)
+    with pytest.raises(ValueError, match=r"^p_range: the model has no scheduling range"):
+        lpvid.stability(free)
+    assert lpvid.stability(free, p_range=(0.0, 1.0), quadratic=False).stable
+    with pytest.raises(TypeError, match=r"^model: expected an LpvModel, got str"):
+        lpvid.stability("model")
+    # An LTI model needs no range.
+    lti = lpvid.LpvModel([[[0.5, 0.2], [-0.2, 0.5]]], [[[1.0], [0.0]]], [[[1.0, 0.0]]], Ts=1.0)
+    rep = lpvid.stability(lti)
+    assert rep.stable and rep.margin == pytest.approx(1 - np.hypot(0.5, 0.2))
+    assert rep.quadratic is True
+
+
+def test_other_bases_use_the_grid_and_leave_quadratic_open():
+    basis = lpvid.CustomBasis([np.sin])
+    m = lpvid.LpvModel(
+        [[[0.5]], [[0.6]]],
+        [[[1.0]], [[0.0]]],
+        [[[1.0]], [[0.0]]],
+        basis=basis,
+        Ts=1.0,
+        p_range=(0.0, 3.0),
+    )
+    rep = lpvid.stability(m)
+    # a(p) = 0.5 + 0.6 sin p peaks at p = pi / 2 with 1.1.
+    assert rep.method == "grid" and not rep.stable
+    assert rep.worst_p == pytest.approx(np.pi / 2, abs=1e-5)
+    assert rep.margin == pytest.approx(-0.1, abs=1e-9)
+    assert rep.quadratic is False
+
+
+def test_two_parameters():
+    basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)])
+    # a = 0.5 + 0.2 s1 + 0.25 s2: largest at the corner (1, 1) with 0.95.
+    m = lpvid.LpvModel(
+        [[[0.5]], [[0.2]], [[0.25]]],
+        [[[1.0]], [[0.0]], [[0.0]]],
+        [[[1.0]], [[0.0]], [[0.0]]],
+        basis=basis,
+        Ts=1.0,
+    )
+    rep = lpvid.stability(m)
+    assert rep.stable and rep.method == "grid"
+    np.testing.assert_allclose(rep.worst_p, [1.0, 1.0])
+    assert rep.margin == pytest.approx(0.05)
+    assert rep.quadratic is None and "one scheduling parameter" in rep.note
+
+
+def test_quadratic_false_when_switching_destabilises():
+    # Frozen models stable on the whole range, but the product A(0) A(1) has
+    # spectral radius > 1: no common Lyapunov matrix exists (switching diverges).
+    A1 = np.array([[0.5, 0.95], [0.0, 0.5]])
+    A2 = np.array([[0.5, 0.0], [0.95, 0.5]])
+    assert np.max(np.abs(np.linalg.eigvals(A1 @ A2))) > 1.3
+    rep = lpvid.stability(_affine(A1, A2, Ts=1.0))
+    assert rep.stable and rep.margin == pytest.approx(0.025)
+    assert rep.quadratic is False and "not quadratically stable" in rep.note
+
+
+def test_quadratic_false_in_continuous_time_matches_shorten_narendra():
+    # Both vertices Hurwitz and every convex combination too, but A1 + g A2^-1 is
+    # not Hurwitz for some g > 0: no common quadratic Lyapunov function (a
+    # necessary condition of Shorten and Narendra).
+    A1 = np.array([[-1.0, 3.0], [0.0, -1.0]])
+    A2 = np.array([[0.0, 2.0], [-2.0, -1.0]])
+    gs = np.logspace(-3, 3, 301)
+    worst = max(np.max(np.linalg.eigvals(A1 + g * np.linalg.inv(A2)).real) for g in gs)
+    assert worst > 0
+    rep = lpvid.stability(_affine(A1, A2, Ts=None))
+    assert rep.stable and rep.quadratic is False
+
+
+@pytest.mark.parametrize("Ts", [1.0, None])
+def test_quadratic_certificate_is_checked_independently(Ts):
+    # A polynomial family with a common Lyapunov matrix; check the returned P
+    # on a fine grid, independently of the solver and of the identity.
+    if Ts is None:
+        coefs = [[[-1.0, 2.0], [-2.0, -1.0]], [[0.3, 0.5], [-0.5, 0.2]], [[0.0, 0.4], [-0.1, 0.1]]]
+    else:
+        coefs = [[[0.6, 0.3], [-0.3, 0.6]], [[0.1, 0.05], [0.0, -0.1]], [[0.05, 0.0], [0.02, 0.0]]]
+    basis = lpvid.Polynomial(2, domain=(0.0, 1.0))
+    B = np.zeros((3, 2, 1))
+    B[0, 0] = 1.0
+    m = lpvid.LpvModel(np.array(coefs), B, np.transpose(B, (0, 2, 1)), basis=basis, Ts=Ts)
+    rep = lpvid.stability(m)
+    assert rep.quadratic is True
+    cert = rep.certificate
+    assert cert.mu > 0 and np.linalg.eigvalsh(cert.P).min() > 0
+    for A in frozen_A(m, np.linspace(0, 1, 401)):
+        F = cert.inequality(A)
+        assert np.linalg.eigvalsh(0.5 * (F + F.T)).min() >= cert.mu * (1 - 1e-9)
+        if Ts is not None:
+            assert np.linalg.eigvalsh(cert.P - A.T @ cert.P @ A).min() > 0
+        else:
+            assert np.linalg.eigvalsh(A.T @ cert.P + cert.P @ A).max() < 0
+
+
+def test_unstable_frozen_model_is_not_quadratically_stable():
+    rep = lpvid.stability(_scalar([0.5, 0.6]))
+    assert not rep.stable and rep.quadratic is False and rep.certificate is None
+
+
+def test_without_clarabel_quadratic_is_none(monkeypatch):
+    monkeypatch.setitem(sys.modules, "clarabel", None)
+    rep = lpvid.stability(_scalar([0.5, 0.45]))
+    assert rep.stable and rep.quadratic is None and "lpvid[lmi]" in rep.note
+    q, cert, note = quadratic_stability(np.array([[[0.5]]]), True)
+    assert q is None and cert is None

@@ -1,0 +1,141 @@
+"""Fits that keep stability, and what identify adds: refit, covariance, stability."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid.trust.enforce import STABLE_TOL, stabilised
+
+BASIS = lpvid.Polynomial(2, domain=(0.0, 1.0))
+P = np.array([0.0, 1 / 3, 2 / 3, 1.0])
+FIXED = {"B": [1, 2], "C": True, "D": True}
+
+
+@pytest.fixture(scope="module")
+def peaked():
+    """A first-order system whose pole peaks at 0.995 between the points (|2p - 1|^3 shape).
+
+    The quadratic basis cannot follow the peak: the best quadratic through the
+    data overshoots the unit circle between the two middle points.
+    """
+    a = 0.995 - 0.1 * np.abs(2 * P - 1) ** 3
+    f = np.linspace(0.02, 0.5, 60)
+    z = np.exp(2j * np.pi * f)
+    G = (0.1 / (z[None, :] - a[:, None]))[:, :, None, None]
+    sigma = 0.05 * np.abs(G)
+    rng = np.random.default_rng(0)
+    G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
+    return lpvid.FrfData(P, f, G, sigma=sigma, Ts=1.0)
+
+
+def _start(a0=0.9):
+    k = len(BASIS) + 1
+    A, B, C = np.zeros((k, 1, 1)), np.zeros((k, 1, 1)), np.zeros((k, 1, 1))
+    A[0], B[0], C[0] = a0, 0.1, 1.0
+    return lpvid.LpvModel(A, B, C, basis=BASIS, Ts=1.0)
+
+
+def _max_pole(model):
+    p = np.linspace(0.0, 1.0, 100_001)
+    return np.max(np.abs(lpvid.frozen.frozen_A(model, p)[:, 0, 0]))
+
+
+def test_fit_nls_goes_unstable_between_the_points_unless_told(peaked):
+    free = lpvid.fit_nls(_start(), peaked, FIXED)
+    kept = lpvid.fit_nls(_start(), peaked, FIXED, stable=True)
+    # Unconstrained: stable at the points, unstable between the middle two.
+    assert lpvid.frozen.frozen_stable(free.model, P)
+    rep = lpvid.stability(free.model, quadratic=False)
+    assert not rep.stable and 1 / 3 < rep.worst_p < 2 / 3
+    assert _max_pole(free.model) > 1.0
+    # Constrained: stable on the whole range (checked densely, independently).
+    assert lpvid.stability(kept.model, quadratic=False).stable
+    assert _max_pole(kept.model) < 1.0
+    # at a small cost in V_NLS (seen: 0.3 %)
+    assert free.vnls < kept.vnls < 1.02 * free.vnls
+    assert kept.converged
+
+
+def test_fit_l21_keeps_stability(peaked):
+    free = lpvid.fit_l21(_start(), peaked, 1e-4, fixed=FIXED)
+    kept = lpvid.fit_l21(_start(), peaked, 1e-4, fixed=FIXED, stable=True)
+    assert not lpvid.stability(free.model, quadratic=False).stable
+    assert lpvid.stability(kept.model, quadratic=False).stable and _max_pole(kept.model) < 1.0
+    assert kept.vnls < 1.02 * free.vnls
+    path = lpvid.l21_path(_start(), peaked, [1e-3, 1e-4], fixed=FIXED, stable=True)
+    assert all(lpvid.stability(r.model, quadratic=False).stable for r in path)
+
+
+def test_unstable_start_is_refused(peaked):
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, but .* at p = 0 is unstable",
+    ):
+        lpvid.fit_nls(_start(1.01), peaked, FIXED, stable=True)
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, .* \(stability margin -0\.01",
+    ):
+        lpvid.fit_l21(_start(1.01), peaked, 1e-3, fixed=FIXED, stable=True)
+    with pytest.raises(
+        ValueError,
+        match=r"^model: stable=True needs a stable start, .* closer to the stability boundary",
+    ):
+        lpvid.fit_nls(_start(1 - STABLE_TOL / 2), peaked, FIXED, stable=True)
+    with pytest.raises(ValueError, match=r"^p_range: \(0, 2\) reaches outside the basis domain"):
+        lpvid.fit_nls(_start(), peaked, FIXED, stable=True, p_range=(0.0, 2.0))
+    with pytest.raises(TypeError, match=r"^stable: expected True or False, got str"):
+        lpvid.fit_nls(_start(), peaked, FIXED, stable="yes")
+
+
+def test_stabilised_moves_poles_inside():
+    m = _start(1.2)
+    s = stabilised(m)
+    rep = lpvid.stability(s, quadratic=False)
+    assert rep.stable and rep.margin == pytest.approx(1e-3)
+    assert stabilised(_start(0.5)) is not None and stabilised(_start(0.5)).A[0, 0, 0] == 0.5
+    ct = lpvid.LpvModel(
+        [[[0.5]], [[1.0]], [[0.0]]], [[[1.0]], [[0]], [[0]]], [[[1.0]], [[0]], [[0]]], basis=BASIS
+    )
+    assert lpvid.stability(stabilised(ct), quadratic=False).stable
+
+
+def test_identify_with_and_without_stability(peaked):
+    with pytest.warns(lpvid.ConvergenceWarning, match="unstable frozen models"):
+        free = lpvid.identify(peaked, 1, BASIS, fixed={"D": True})
+    assert not free.stability.stable
+    assert "NOT stable" in free.summary()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", lpvid.ConvergenceWarning)
+        kept = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True)
+    assert kept.stability.stable and "frozen models stable over p in [0, 1]" in kept.summary()
+    for e in kept.entries:
+        assert lpvid.stability(e.model, quadratic=False).stable
+    assert kept.final.vnls < 1.02 * free.final.vnls
+
+
+def test_refit_removes_the_shrinkage(peaked):
+    res = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True, gammas=[0.1])
+    assert res.entry.gamma == 0.1 and res.refit is not None
+    # Levenberg-Marquardt on the support from the l2,1 model: no worse on the data.
+    assert res.refit.vnls <= res.entry.vnls * (1 + 1e-9)
+    assert res.final is res.refit_entry and res.model is res.refit.model
+    assert res.refit_entry.n_groups == res.entry.n_groups
+    # the dropped groups are exactly zero and held there
+    for x, kept in res.entry.nonzero_groups.items():
+        coef = getattr(res.model, x)
+        for i in range(1, coef.shape[0]):
+            if i not in kept:
+                assert np.all(coef[i] == 0)
+    assert "refit on the support" in res.summary()
+    cov = res.covariance
+    assert cov is not None and cov.model is res.model
+    held = lpvid.fixed_mask(res.model, {"D": True})
+    assert np.all(cov.theta[held] == 0)
+    no = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True, gammas=[0.1], refit=False)
+    assert no.refit is None and no.model is no.entry.model and no.final is no.entry
+    assert no.covariance is not None
