@@ -22,8 +22,8 @@ pub mod response;
 pub mod sensitivity;
 pub mod simulate;
 pub mod socp;
-pub mod sum;
 pub mod stable;
+pub mod sum;
 #[doc(hidden)]
 pub mod testing;
 pub mod time;
@@ -40,6 +40,6 @@ pub use lm::{levenberg_marquardt, LmSettings};
 pub use objective::{GaussNewton, Objective};
 pub use problem::Problem;
 pub use response::frequency_response;
+pub use stable::{FrozenRange, Stable};
 pub use sum::Sum;
 pub use time::{InitialState, Record, TimeProblem};
-pub use stable::{FrozenRange, Stable};

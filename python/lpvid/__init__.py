@@ -14,6 +14,7 @@ from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, SingularModelError
 from lpvid.fit import fit_l21, fit_nls, l21_path
 from lpvid.groups import GroupNorms
+from lpvid.identified import IdentifyResult
 from lpvid.initial import (
     Consistency,
     LocalModels,
@@ -28,7 +29,7 @@ from lpvid.initial.smile import smile
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
-from lpvid.pipeline import IdentifyResult, identify
+from lpvid.pipeline import identify
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
 from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from lpvid._files import write_atomic
-from lpvid.pipeline import IdentifyResult
+from lpvid.identified import IdentifyResult
 from lpvid.trust.stability import stability
 
 __all__ = ["write_report", "key_numbers"]

@@ -31,6 +31,7 @@
 
 mod columns;
 mod frames;
+mod gram;
 mod hold;
 mod problem;
 mod record;
