@@ -22,7 +22,7 @@ from lpvid._checks import positive_int, real_array, same_sample_time
 from lpvid.cost import build_problem, check_compatible
 from lpvid.data import FrfData
 from lpvid.model import LpvModel
-from lpvid.schedule import as_rows
+from lpvid.schedule import as_rows, range_pairs
 from lpvid.timedata import TimeData
 
 __all__ = [
@@ -148,7 +148,7 @@ def check_time_compatible(model: LpvModel, data: TimeData) -> None:
         )
     if model.p_range is None:
         return
-    pairs = np.atleast_2d(np.asarray(model.p_range, dtype=float))
+    pairs = np.asarray(range_pairs(model.p_range), dtype=float)
     lo, hi = pairs[:, 0], pairs[:, 1]
     slack = 1e-9 * np.maximum(hi - lo, 1.0)
     for k, p in enumerate(data.p):
