@@ -52,8 +52,10 @@ def collected() -> Iterator[list[tuple[type[Warning], str]]]:
         if _state["count"] == 0:
             _state["show"] = warnings.showwarning
             warnings.showwarning = _route
-            warnings.simplefilter("always")
-            _state["filter"] = warnings.filters[0]
+            # inserted as is: simplefilter would first remove an equal filter in place
+            _state["filter"] = ("always", None, Warning, None, 0)
+            warnings.filters.insert(0, _state["filter"])
+            warnings._filters_mutated()  # type: ignore[attr-defined]
         _state["count"] += 1
     _local.sink = sink
     try:
@@ -64,9 +66,9 @@ def collected() -> Iterator[list[tuple[type[Warning], str]]]:
             _state["count"] -= 1
             if _state["count"] == 0:
                 warnings.showwarning = _state["show"]
-                try:
-                    warnings.filters.remove(_state["filter"])
-                except ValueError:
-                    pass  # the filters were reset meanwhile
+                # this very entry (an equal one of the caller's stays)
+                ours = [k for k, f in enumerate(warnings.filters) if f is _state["filter"]]
+                if ours:  # else the filters were replaced meanwhile
+                    del warnings.filters[ours[0]]
                 warnings._filters_mutated()  # type: ignore[attr-defined]
                 _state["show"] = _state["filter"] = None

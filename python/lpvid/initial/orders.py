@@ -17,7 +17,12 @@ __all__ = ["OrderHints", "order_hints"]
 MAX_ROWS = 20
 
 #: Smallest mean drop (decades) of the singular values that makes an order a hint.
-MIN_DROP = 0.05
+MIN_DROP = 0.1
+
+#: Singular values below this many times the largest of pure noise count as noise
+#: (the weighting by sigma is approximate and the noise's singular values come in
+#: pairs: measured up to 1.6 times the bound on noise alone).
+NOISE_LEVEL = 2.0
 
 
 @dataclass
@@ -30,9 +35,9 @@ class OrderHints:
         Candidate orders, strongest first: the orders ``n`` after which the
         singular values drop most (largest mean ``log10(s[n-1] / s[n])``
         over the scheduling points, each singular value counted at least at
-        the noise level), at most ``count`` of them with a drop of at least
-        :data:`MIN_DROP` decades (empty when the data show no drop above the
-        noise).
+        :data:`NOISE_LEVEL`), at most ``count`` of them with a drop of at
+        least :data:`MIN_DROP` decades (empty when the data show no drop
+        above the noise).
     gaps : ndarray, shape (n_max,)
         That mean drop in decades for the orders ``1..n_max``.
     singular_values : ndarray, shape (N, q l)
@@ -114,7 +119,7 @@ def order_hints(data: FrfData, *, count: int = 3, n_rows: int | None = None) -> 
     edge = np.sqrt(F * r - q * r / 2) * (1 + np.sqrt(q * l / max(2 * F * r - q * r, 1)))
     s = s / edge
     n_max = max(1, min(q * l - 1, max_order(F, l, r)))
-    clipped = np.log10(np.maximum(s, 1.0))
+    clipped = np.log10(np.maximum(s, NOISE_LEVEL))
     gaps = (clipped[:, :n_max] - clipped[:, 1 : n_max + 1]).mean(axis=0)
     ranked = [int(i) + 1 for i in np.argsort(-gaps, kind="stable") if gaps[i] >= MIN_DROP]
     orders = ranked[:k]
