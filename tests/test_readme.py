@@ -99,6 +99,7 @@ def test_readme_python_examples_run_and_print_what_they_state(tmp_path, monkeypa
     assert checked >= 2
     assert (tmp_path / "model.json").is_file()
     assert (tmp_path / "my-report" / "report.md").is_file()
+    assert (tmp_path / "my-select" / "select.md").is_file()
     # the example's result is the demo's: the same data, order and basis
     result = namespace["result"]
     ds = namespace["ds"]

@@ -25,12 +25,15 @@ from lpvid.initial import (
     initial_candidates,
     smile_candidates,
 )
+from lpvid.initial.orders import OrderHints, order_hints
 from lpvid.initial.smile import smile
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.model import LpvModel
 from lpvid.pipeline import identify
 from lpvid.results import FitResult, L21Result, PathResult
+from lpvid.selected import GridRow, SelectResult
+from lpvid.selection import select
 from lpvid.settings import L21Settings
 from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls
 from lpvid.timedata import TimeData
@@ -48,6 +51,7 @@ __all__ = [
     "CustomBasis",
     "FitResult",
     "FrfData",
+    "GridRow",
     "GroupNorms",
     "IdentifyResult",
     "L21Result",
@@ -57,8 +61,10 @@ __all__ = [
     "LpvModel",
     "LyapunovCertificate",
     "Multisine",
+    "OrderHints",
     "PathResult",
     "Polynomial",
+    "SelectResult",
     "SingularModelError",
     "StabilityReport",
     "TimeCost",
@@ -82,11 +88,13 @@ __all__ = [
     "initial_states",
     "l21_path",
     "multisine",
+    "order_hints",
     "plots",
     "readers",
     "refit",
     "report",
     "residual",
+    "select",
     "smile",
     "smile_candidates",
     "stability",

@@ -11,7 +11,18 @@ from lpvid.data import FrfData
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
 
-__all__ = ["check_order"]
+__all__ = ["check_order", "zero_model"]
+
+
+def zero_model(n: int, basis: Basis, data: FrfData) -> LpvModel:
+    """The all-zero LPV model of order ``n`` over ``basis`` with the data's inputs and outputs.
+
+    Its layout is what masks such as :func:`lpvid.fixed_mask` need.
+    """
+    k, r, l = len(basis) + 1, data.n_inputs, data.n_outputs
+    return LpvModel(
+        np.zeros((k, n, n)), np.zeros((k, n, r)), np.zeros((k, l, n)), basis=basis, Ts=data.Ts
+    )
 
 
 def check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
@@ -39,14 +50,7 @@ def check_order(n: int, basis: Basis, data: FrfData, fixed: Any) -> None:
     """
 
     def excess(order: int) -> tuple[int, int]:
-        k, r, l = len(basis) + 1, data.n_inputs, data.n_outputs
-        layout = LpvModel(
-            np.zeros((k, order, order)),
-            np.zeros((k, order, r)),
-            np.zeros((k, l, order)),
-            basis=basis,
-        )
-        free = int(free_mask(layout, fixed).sum())
+        free = int(free_mask(zero_model(order, basis, data), fixed).sum())
         return free, free - order * order - 2 * data.n_residuals
 
     free, over = excess(n)

@@ -1,22 +1,31 @@
-"""The ``lpvid`` command line: ``lpvid demo`` and ``lpvid fit``."""
+"""The ``lpvid`` command line: ``lpvid demo``, ``lpvid fit`` and ``lpvid select``."""
 
 from __future__ import annotations
 
 import argparse
-import math
-import os
 import sys
-import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import lpvid
+from lpvid import select_cli
+from lpvid._cliargs import (
+    EXIT_MISUSE,
+    Misuse,
+    Parser,
+    basis_of,
+    fixed_of,
+    labels_of,
+    load,
+    misuse,
+    one_line,
+    out_dir,
+    printer,
+)
 
 __all__ = ["main"]
-
-EXIT_MISUSE = 2
 
 FIT_EPILOG = """\
 The data file holds FRFs measured at frozen scheduling values:
@@ -46,46 +55,14 @@ example:
 """
 
 
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line and exit code 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(EXIT_MISUSE, f"{self.prog}: error: {message}\n")
-
-
-class _Misuse(Exception):
-    """A user error found after parsing (a file that cannot be read, bad values)."""
-
-
-#: The command-line option behind each argument name lpvid's errors start with.
-_OPTIONS = {
-    "order": "--order",
-    "gammas": "--gamma",
-    "validation": "--validation",
-    "tolerance": "--tolerance",
-    "basis": "--basis",
-    "degree": "--basis",
-    "domain": "--domain",
-    "fixed": "--fix",
-}
-
-
-def _misuse(exc: Exception) -> _Misuse:
-    """A library error about an argument as a misuse of the option behind it."""
-    name, sep, rest = str(exc).partition(": ")
-    if sep and name in _OPTIONS:
-        return _Misuse(f"{_OPTIONS[name]}: {rest}")
-    return _Misuse(str(exc))
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``lpvid`` command."""
-    parser = _Parser(
+    parser = Parser(
         prog="lpvid",
         description="Identify LPV state-space models from FRF data at frozen operating points.",
     )
     parser.add_argument("--version", action="version", version=f"lpvid {lpvid.__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
 
     demo = sub.add_parser(
         "demo",
@@ -157,17 +134,8 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", required=True, help="output folder")
     fit.add_argument("--no-figures", action="store_true", help="skip the figures")
     fit.add_argument("--quiet", action="store_true", help="print only the results")
+    select_cli.add_parser(sub)
     return parser
-
-
-def _printer(quiet: bool) -> Any:
-    start = time.perf_counter()
-
-    def say(message: str) -> None:
-        if not quiet:
-            print(f"[{time.perf_counter() - start:6.2f} s] {message}", flush=True)
-
-    return say
 
 
 def _print_result(result: lpvid.IdentifyResult) -> None:
@@ -205,8 +173,8 @@ def _run(
 
 
 def _demo(args: argparse.Namespace) -> int:
-    say = _printer(args.quiet)
-    _out_dir(args.out)
+    say = printer(args.quiet)
+    out_dir(args.out)
     ds = lpvid.datasets.gantry() if args.data == "gantry" else lpvid.datasets.positioning_stage()
     if not args.quiet:
         print(ds.description)
@@ -231,116 +199,23 @@ def _demo(args: argparse.Namespace) -> int:
     )
 
 
-def _basis(
-    spec: str, domain: Any, data: lpvid.FrfData, validation: lpvid.FrfData | None
-) -> lpvid.Basis:
-    kind, _, text = spec.partition(":")
-    if kind not in ("poly", "legendre") or not text.isdigit():
-        raise _Misuse(f"--basis: expected poly:D or legendre:D with D = 0, 1, 2, ..., got {spec!r}")
-    degree = int(text)
-    # Counted before the basis is built: a huge degree would take long to build.
-    n_functions = math.comb(degree + data.n_params, data.n_params) - 1
-    if n_functions + 1 > data.n_points:
-        raise _Misuse(
-            f"--basis: {spec} has {n_functions} basis functions; they need at least "
-            f"{n_functions + 1} scheduling points, the data have {data.n_points}"
-        )
-    if domain is None:
-        pairs = [data.p_range] if data.n_params == 1 else data.p_range
-        if any(hi <= lo for lo, hi in pairs):
-            raise _Misuse(
-                "--domain: the data's scheduling values do not span a range; give --domain LO HI"
-            )
-        domain = data.p_range
-    else:
-        if data.n_params != 1:
-            raise _Misuse(
-                f"--domain: sets the range of one scheduling parameter; the data have "
-                f"{data.n_params} (leave --domain out to use the range of the data)"
-            )
-        if not all(math.isfinite(x) for x in domain) or domain[0] >= domain[1]:
-            raise _Misuse(f"--domain: expected finite LO < HI, got {domain[0]:g} {domain[1]:g}")
-        for name, frf in (("data", data), ("--validation", validation)):
-            if frf is not None and (frf.p.min() < domain[0] or frf.p.max() > domain[1]):
-                raise _Misuse(
-                    f"--domain: [{domain[0]:g}, {domain[1]:g}] does not contain the scheduling "
-                    f"values of {name} ({frf.p.min():g} to {frf.p.max():g})"
-                )
-        domain = (domain[0], domain[1])
-    try:
-        if kind == "poly":
-            return lpvid.Polynomial(degree, domain=domain)
-        return lpvid.Legendre(degree, domain=domain)
-    except (ValueError, TypeError) as exc:
-        raise _misuse(exc) from exc
-
-
-def _load(path: str, what: str, lines: str = "same") -> lpvid.FrfData:
-    if not Path(path).exists():
-        raise _Misuse(f"{what}: no such file: {path}")
-    if not Path(path).is_file():
-        raise _Misuse(f"{what}: not a file: {path}")
-    try:
-        if Path(path).suffix.lower() == ".toml":
-            return lpvid.FrfData.from_files(path, lines=lines)
-        return lpvid.FrfData.load(path)
-    except (ValueError, TypeError, OSError) as exc:
-        raise _Misuse(f"{what}: {str(exc).removeprefix('path: ')}") from exc
-
-
-def _out_dir(out: str) -> None:
-    """Refuse an output folder that cannot be written, before any computation."""
-    if not out.strip():
-        raise _Misuse("--out: expected a folder name, got an empty one")
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise _Misuse(f"--out: {out} exists and is not a folder")
-    existing = path
-    while not existing.exists():
-        existing = existing.parent
-    if not existing.is_dir():
-        raise _Misuse(f"--out: cannot create {out}: {existing} is not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise _Misuse(f"--out: cannot write into {existing} (permission denied)")
-
-
-def _fixed(names: list[str]) -> dict[str, bool] | None:
-    twice = sorted({x for x in names if names.count(x) > 1})
-    if twice:
-        raise _Misuse(f"--fix: {', '.join(twice)} given more than once")
-    if set(names) == {"A", "B", "C", "D"}:
-        raise _Misuse("--fix: A, B, C and D all fixed leave nothing to identify")
-    return {x: True for x in names} or None
-
-
-def _labels(data: lpvid.FrfData) -> dict[str, Any]:
-    """Report labels from a manifest's names (none for .npz/.mat data)."""
-    prov = data.provenance or {}
-    params = prov.get("parameters")
-    return {
-        "inputs": prov.get("inputs"),
-        "outputs": prov.get("outputs"),
-        "p_label": ", ".join(params) if params else None,
-    }
-
-
 def _fit(args: argparse.Namespace) -> int:
-    say = _printer(args.quiet)
-    _out_dir(args.out)
+    say = printer(args.quiet)
+    out_dir(args.out)
     if args.order < 1:
-        raise _Misuse(f"--order: expected a positive integer, got {args.order}")
-    fixed = _fixed(args.fix)
+        raise Misuse(f"--order: expected a positive integer, got {args.order}")
+    fixed = fixed_of(args.fix)
     if args.tolerance is not None and not args.validation:
-        raise _Misuse(
+        raise Misuse(
             "--tolerance: applies to the choice by validation error; give --validation too"
         )
     manifests = [f for f in (args.data, args.validation) if f and f.lower().endswith(".toml")]
     if args.lines is not None and not manifests:
-        raise _Misuse("--lines: applies to a manifest (.toml) of measured files only")
+        raise Misuse("--lines: applies to a manifest (.toml) of measured files only")
     lines = args.lines or "same"
-    data = _load(args.data, "data", lines)
-    validation = _load(args.validation, "--validation", lines) if args.validation else None
-    basis = _basis(args.basis, args.domain, data, validation)
+    data = load(args.data, "data", lines)
+    validation = load(args.validation, "--validation", lines) if args.validation else None
+    basis = basis_of(args.basis, args.domain, data, validation)
     say(f"data: {data}")
 
     def go() -> lpvid.IdentifyResult:
@@ -356,15 +231,11 @@ def _fit(args: argparse.Namespace) -> int:
                 progress=say,
             )
         except (ValueError, TypeError) as exc:
-            raise _misuse(exc) from exc
+            raise misuse(exc) from exc
 
     return _run(
-        go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None, **_labels(data)
+        go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None, **labels_of(data)
     )
-
-
-def _one_line(exc: Exception) -> str:
-    return " ".join(str(exc).split())
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -384,12 +255,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("always", lpvid.ConvergenceWarning)
             warnings.showwarning = say_warning
-            return _demo(args) if args.command == "demo" else _fit(args)
-    except _Misuse as exc:
-        print(f"lpvid {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+            commands = {"demo": _demo, "fit": _fit, "select": select_cli.run}
+            return commands[args.command](args)
+    except Misuse as exc:
+        print(f"lpvid {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_MISUSE
     except OSError as exc:
-        print(f"lpvid {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"lpvid {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"lpvid {args.command}: interrupted", file=sys.stderr)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
 from lpvid._threads import single_blas
@@ -31,7 +32,14 @@ from lpvid.settings import L21Settings
 from lpvid.timecost import check_time_data
 from lpvid.trust.steps import finish, identify_range, stable_fit
 
-__all__ = ["DEFAULT_GAMMAS", "PathEntry", "IdentifyResult", "identify"]
+__all__ = [
+    "DEFAULT_GAMMAS",
+    "PathEntry",
+    "IdentifyResult",
+    "check_gammas",
+    "check_validation",
+    "identify",
+]
 
 #: Default sweep of the (normalised) regularisation weight, largest first.
 DEFAULT_GAMMAS = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)
@@ -45,7 +53,8 @@ def _say(progress: Progress | None, message: str) -> None:
         progress(message)
 
 
-def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
+def check_validation(data: FrfData, validation: Any) -> FrfData | None:
+    """Validation data of :func:`identify`, checked against the identification data."""
     if validation is None:
         return None
     if not isinstance(validation, FrfData):
@@ -59,6 +68,14 @@ def _check_validation(data: FrfData, validation: Any) -> FrfData | None:
     if not same_sample_time(validation.Ts, data.Ts):
         raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
     return validation
+
+
+def check_gammas(gammas: Sequence[float] | None) -> NDArray[np.float64]:
+    """The regularisation weights of :func:`identify`, checked (default :data:`DEFAULT_GAMMAS`)."""
+    gs = real_array(DEFAULT_GAMMAS if gammas is None else gammas, "gammas", ndim=1)
+    if gs.size == 0 or np.any(gs <= 0):
+        raise ValueError("gammas: needs at least one value, all > 0")
+    return gs
 
 
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
@@ -222,10 +239,8 @@ def identify(
     if not isinstance(basis, Basis):
         raise TypeError(f"basis: expected an lpvid basis, got {type(basis).__name__}")
     n = positive_int(order, "order")
-    validation = _check_validation(data, validation)
-    gs = real_array(DEFAULT_GAMMAS if gammas is None else gammas, "gammas", ndim=1)
-    if gs.size == 0 or np.any(gs <= 0):
-        raise ValueError("gammas: needs at least one value, all > 0")
+    validation = check_validation(data, validation)
+    gs = check_gammas(gammas)
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
     time_cost = None if time_data is None else check_time_data(data, time_data)
     l21 = L21Settings.of(settings if settings is not None else L21Settings(max_outer=10))

@@ -11,9 +11,10 @@ import numpy as np
 
 from lpvid._files import write_atomic
 from lpvid.identified import IdentifyResult
+from lpvid.selected import SelectResult, basis_label
 from lpvid.trust.stability import stability
 
-__all__ = ["write_report", "key_numbers"]
+__all__ = ["write_report", "key_numbers", "select_numbers", "write_select_report"]
 
 
 def key_numbers(result: IdentifyResult) -> dict[str, Any]:
@@ -311,3 +312,113 @@ def _markdown(
         for caption, rel in drawn:
             lines += [f"![{caption}]({rel})", "", f"*{caption}*", ""]
     return "\n".join(lines)
+
+
+def select_numbers(sel: SelectResult) -> dict[str, Any]:
+    """The grid of :func:`lpvid.select` and its choice, JSON-ready (written as ``grid.json``)."""
+    return {
+        "rule": sel.rule,
+        "tolerance": sel.tolerance,
+        "chosen": {"order": sel.order, "basis": basis_label(sel.basis), "index": sel.chosen},
+        "reason": sel.reason,
+        "interrupted": sel.interrupted,
+        "order_hints": sel.hints.orders,
+        "timings": sel.timings,
+        "grid": [
+            {
+                "order": r.order,
+                "basis": basis_label(r.basis),
+                "vnls": r.vnls,
+                "noise_floor": r.noise_floor,
+                "validation_vnls": r.validation_vnls,
+                "validation_floor": r.validation_floor,
+                "n_groups": r.n_groups,
+                "n_free": r.n_free,
+                "seconds": r.seconds,
+                "error": r.error,
+                "warnings": [f"{c.__name__}: {m}" for c, m in r.warnings],
+            }
+            for r in sel.grid
+        ],
+    }
+
+
+def write_select_report(
+    sel: SelectResult,
+    out_dir: str | os.PathLike[str],
+    *,
+    title: str = "lpvid select",
+    description: str | None = None,
+    figures: bool = True,
+    inputs: Any = None,
+    outputs: Any = None,
+    p_label: str | None = None,
+) -> Path:
+    """Write the grid of :func:`lpvid.select` and the report of the chosen model.
+
+    Files written to ``out_dir``: everything :func:`write_report` writes for
+    ``sel.best`` (``report.md``, ``model.json``, ``model.mat``,
+    ``result.json``, figures), then ``select.md`` (the grid table, the
+    summary and the figure of :func:`lpvid.plots.select_grid` as
+    ``figures/select.png`` when ``figures`` and matplotlib is installed) and
+    ``grid.json`` (:func:`select_numbers`), each whole or not at all.
+
+    Parameters
+    ----------
+    sel : SelectResult
+        What :func:`lpvid.select` returned.
+    out_dir : str or path-like
+        Target folder.
+    title, description, figures, inputs, outputs, p_label
+        As in :func:`write_report`.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``select.md``.
+    """
+    out = Path(out_dir)
+    write_report(
+        sel.best,
+        out,
+        title=f"{title}: the chosen model ({sel.row.label})",
+        description=description,
+        figures=figures,
+        inputs=inputs,
+        outputs=outputs,
+        p_label=p_label,
+    )
+    text = json.dumps(select_numbers(sel), indent=1, allow_nan=True).encode()
+    write_atomic(out / "grid.json", lambda fh: fh.write(text))
+    figure = []
+    if figures:
+        try:
+            from lpvid import plots
+
+            (out / "figures").mkdir(parents=True, exist_ok=True)
+            plots.save(plots.select_grid(sel, title=title), out / "figures" / "select.png")
+            caption = "V_NLS over its noise floor against the order, one line per basis"
+            figure = [f"![{caption}](figures/select.png)", "", f"*{caption}*", ""]
+        except ImportError as exc:
+            figure = [f"(figure skipped: {exc})", ""]
+    lines = [
+        f"# {title}",
+        "",
+        *([description.strip(), ""] if description else []),
+        "## The choice",
+        "",
+        *[f"- {line}" for line in sel.summary().splitlines()],
+        "- the chosen model's report: [report.md](report.md)",
+        "",
+        "## The grid (-> the chosen pair)",
+        "",
+        "```",
+        sel.table(),
+        "```",
+        "",
+        *figure,
+        "Files: `grid.json` (every pair), `report.md`, `model.json`, `model.mat`, `result.json`.",
+        "",
+    ]
+    md = "\n".join(lines)
+    return write_atomic(out / "select.md", lambda fh: fh.write(md.encode()))

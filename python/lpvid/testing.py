@@ -26,7 +26,7 @@ from lpvid.basis import Polynomial
 from lpvid.data import FrfData
 from lpvid.model import LpvModel
 
-__all__ = ["random_lpv", "direct_frf", "noisy_data"]
+__all__ = ["random_lpv", "modal_lpv", "direct_frf", "noisy_data"]
 
 
 def _generator(rng: object) -> np.random.Generator:
@@ -86,6 +86,77 @@ def random_lpv(
     C = gen.normal(size=(nb + 1, l, n))
     D = gen.normal(size=(nb + 1, l, r))
     return LpvModel(A, B, C, D, basis, Ts=Ts)
+
+
+def modal_lpv(
+    freqs_hz: ArrayLike,
+    damping: float = 0.02,
+    l: int = 2,
+    r: int = 1,
+    domain: tuple[float, float] = (0.0, 1.0),
+) -> LpvModel:
+    """A known continuous-time LPV model: lightly damped modes whose frequencies follow p.
+
+    Mode ``k`` has the natural frequency ``f_k(s) = sum_i freqs_hz[k, i] s^i``
+    (Hz), ``s`` the scheduling value mapped from ``domain`` to [-1, 1], and
+    the relative damping ``damping``; in real modal form its 2 x 2 block of
+    ``A(p)`` is linear in ``f_k``, so the model is exact over
+    ``Polynomial(degree, domain)`` with ``degree = freqs_hz.shape[1] - 1``
+    and only ``A`` depends on p. ``B``, ``C`` and ``D`` are constant and
+    fixed (no random numbers): every input drives every mode, every output
+    sees it.
+
+    Parameters
+    ----------
+    freqs_hz : array_like, shape (modes, degree + 1)
+        Polynomial coefficients of each mode's frequency; keep every
+        frequency positive on the domain.
+    damping : float
+        Relative damping of every mode.
+    l, r : int
+        Outputs and inputs.
+    domain : (lo, hi)
+        Scheduling range of the basis.
+
+    Returns
+    -------
+    LpvModel
+        Of order ``2 modes``.
+
+    Examples
+    --------
+    >>> import lpvid.testing
+    >>> m = lpvid.testing.modal_lpv([[10.0, 2.0, 0.0, 1.0], [25.0, -3.0, 1.0, 0.0]])
+    >>> m.n_states, len(m.basis)
+    (4, 3)
+
+    """
+    coef = real_array(freqs_hz, "freqs_hz", ndim=2)
+    zeta = positive_float(damping, "damping")
+    if zeta >= 1:
+        raise ValueError(f"damping: expected a value in (0, 1), got {zeta}")
+    l = positive_int(l, "l")
+    r = positive_int(r, "r")
+    modes, k = coef.shape
+    basis = Polynomial(k - 1, domain=domain)
+    n = 2 * modes
+    A = np.zeros((k, n, n))
+    w = 2 * np.pi * coef  # coefficients of each mode's angular frequency
+    sig, wd = -zeta * w, w * np.sqrt(1 - zeta**2)
+    for m in range(modes):
+        for i in range(k):
+            A[i, 2 * m : 2 * m + 2, 2 * m : 2 * m + 2] = [
+                [sig[m, i], wd[m, i]],
+                [-wd[m, i], sig[m, i]],
+            ]
+    B = np.zeros((k, n, r))
+    B[0, 1::2, :] = w[:, :1] * (1.0 + 0.5 * np.cos(np.arange(r))[None, :])
+    C = np.zeros((k, l, n))
+    rows, cols = np.arange(l)[:, None], np.arange(n)[None, :]
+    C[0] = np.cos(0.7 * rows + 1.3 * cols) + 0.5
+    D = np.zeros((k, l, r))
+    D[0] = 0.1
+    return LpvModel(A, B, C, D, basis)
 
 
 def direct_frf(model: LpvModel, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.complex128]:

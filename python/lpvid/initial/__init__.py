@@ -18,6 +18,8 @@ before it):
   state coordinates and the SMILE interpolation (:func:`lpvid.smile`);
 - :mod:`lpvid.initial.globalstart`: a constant model fitted to all points,
   then freed (:func:`lpvid.global_start`);
+- :mod:`lpvid.initial.orders`: hints at the order from the subspace
+  singular values (:func:`lpvid.order_hints`);
 - :mod:`lpvid.initial.candidates` and :mod:`lpvid.initial.choice`: every
   route refined by :func:`lpvid.fit_nls` (:func:`lpvid.initial_candidates`)
   and the choice of a start (:func:`lpvid.initial.choose`).
@@ -34,6 +36,7 @@ from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.globalstart import constant_start, free_groups, global_start
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels, is_stable, lti_models
+from lpvid.initial.orders import OrderHints, order_hints
 from lpvid.initial.poles import pole_coordinates, pole_uncertainty
 from lpvid.initial.smile import FORMS, smile_candidates
 from lpvid.initial.subspace import fd_subspace
@@ -45,6 +48,7 @@ __all__ = [
     "CoherenceError",
     "Consistency",
     "LocalModels",
+    "OrderHints",
     "best_determined",
     "choose",
     "consistency",
@@ -58,6 +62,7 @@ __all__ = [
     "initial_candidates",
     "is_stable",
     "lti_models",
+    "order_hints",
     "pole_coordinates",
     "pole_uncertainty",
     "smile_candidates",

@@ -20,7 +20,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, positive_int, real_array, sample_time
 
-__all__ = ["bilinear_to_continuous", "fd_subspace", "fit_bd", "max_order", "reflect_unstable"]
+__all__ = [
+    "bilinear_to_continuous",
+    "fd_subspace",
+    "fit_bd",
+    "max_order",
+    "reflect_unstable",
+    "singular_values",
+]
 
 
 def max_order(n_lines: int, n_outputs: int, n_inputs: int) -> int:
@@ -145,14 +152,13 @@ def _weights(sigma: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[n
     return out_scale, 1.0 / col
 
 
-def _observability(
+def _projected(
     zd: NDArray[np.complex128],
     G: NDArray[np.complex128],
     sigma: NDArray[np.float64],
-    n: int,
     q: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """A and C (unit-circle domain) and the singular values of the projected matrix."""
+    """Left singular vectors and singular values of the projected matrix, and the output scales."""
     m, l, r = G.shape
     out_scale, colw = _weights(sigma)
     Gs = G / out_scale[None, :, None] * colw[:, None, :]
@@ -165,10 +171,71 @@ def _observability(
     R = np.linalg.qr(H.T, mode="r")
     L22 = R[q * r :, q * r :].T
     U, s, _ = np.linalg.svd(L22)
+    return U, s, out_scale
+
+
+def _observability(
+    zd: NDArray[np.complex128],
+    G: NDArray[np.complex128],
+    sigma: NDArray[np.float64],
+    n: int,
+    q: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """A and C (unit-circle domain) and the singular values of the projected matrix."""
+    l = G.shape[1]
+    U, s, out_scale = _projected(zd, G, sigma, q)
     O = U[:, :n]
     C = O[:l] * out_scale[:, None]
     A = np.linalg.lstsq(O[: (q - 1) * l], O[l:], rcond=None)[0]
     return A, C, s
+
+
+def _unit_circle(w: NDArray[np.float64], Ts: float | None) -> tuple[NDArray[np.complex128], float]:
+    """The evaluation points on the unit circle and the bilinear centre (0 in discrete time)."""
+    if Ts is not None:
+        return np.exp(1j * w * Ts), 0.0
+    a = _bilinear_centre(w)
+    z = 1j * w
+    return (a + z) / (a - z), a
+
+
+def singular_values(
+    freqs_hz: ArrayLike,
+    G: ArrayLike,
+    sigma: ArrayLike | None = None,
+    Ts: float | None = None,
+    *,
+    n_rows: int,
+) -> NDArray[np.float64]:
+    """Singular values of the projected matrix of the subspace step (the order's evidence).
+
+    The matrix whose column space :func:`fd_subspace` takes as the extended
+    observability matrix: a system of order n gives n large singular values
+    and the rest at the level of the noise.
+
+    Parameters
+    ----------
+    freqs_hz, G, sigma, Ts
+        As in :func:`fd_subspace` (``G`` of shape (M, l, r)).
+    n_rows : int
+        Block rows q of the Vandermonde stack.
+
+    Returns
+    -------
+    ndarray, shape (q l,)
+        In decreasing order.
+
+    """
+    Ts = sample_time(Ts)
+    f = real_array(freqs_hz, "freqs_hz", ndim=1)
+    g = complex_array(G, "G", ndim=3)
+    s = np.ones(g.shape) if sigma is None else real_array(sigma, "sigma").reshape(g.shape)
+    m, _, r = g.shape
+    q = positive_int(n_rows, "n_rows", minimum=2)
+    if q * r > 2 * m * r:
+        raise ValueError(f"n_rows: at most {2 * m} block rows fit {m} lines, got {q}")
+    zd, _ = _unit_circle(2.0 * np.pi * f, Ts)
+    return _projected(zd, g, s, q)[1]
 
 
 def fd_subspace(
@@ -248,15 +315,11 @@ def fd_subspace(
         if q > q_max:
             raise ValueError(f"n_rows: at most {q_max} block rows fit {m} lines, got {q}")
     w = 2.0 * np.pi * f
-    if Ts is not None:
-        z = np.exp(1j * w * Ts)
-        A, C, _ = _observability(z, g, s, n, q)
-    else:
-        z = 1j * w
-        a = _bilinear_centre(w)
-        zd = (a + z) / (a - z)
-        Ad, Cd, _ = _observability(zd, g, s, n, q)
-        A, C = _from_unit_circle(Ad, Cd, a)
+    zd, a = _unit_circle(w, Ts)
+    A, C, _ = _observability(zd, g, s, n, q)
+    if Ts is None:
+        A, C = _from_unit_circle(A, C, a)
+    z = zd if Ts is not None else 1j * w
     if stable:
         A, _ = reflect_unstable(A, Ts)
     B, D = fit_bd(A, C, z, g, s, strictly_proper)

@@ -29,6 +29,9 @@ group_norms
     function.
 accuracy_path
     Accuracy against simplicity along an l2,1 path.
+select_grid
+    V_NLS against the model order, one line per basis, for
+    :func:`lpvid.select`.
 save
     Write a figure to PNG or SVG, whole or not at all.
 """
@@ -37,6 +40,7 @@ from lpvid.plots.band import frf_band, frf_std_map
 from lpvid.plots.bars import group_norms
 from lpvid.plots.files import save
 from lpvid.plots.frf import frf_fit
+from lpvid.plots.grid import select_grid
 from lpvid.plots.path import accuracy_path
 from lpvid.plots.surface import magnitude_surface
 
@@ -48,4 +52,5 @@ __all__ = [
     "group_norms",
     "magnitude_surface",
     "save",
+    "select_grid",
 ]
