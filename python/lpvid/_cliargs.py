@@ -132,6 +132,20 @@ def load(path: str, what: str, lines: str = "same") -> lpvid.FrfData:
         raise Misuse(f"{what}: {str(exc).removeprefix('path: ')}") from exc
 
 
+def load_data(args: argparse.Namespace) -> tuple[lpvid.FrfData, lpvid.FrfData | None]:
+    """The identification and validation data of ``args.data``/``args.validation``.
+
+    ``--lines`` applies to manifests (.toml) only and is refused otherwise.
+    """
+    manifests = [f for f in (args.data, args.validation) if f and f.lower().endswith(".toml")]
+    if args.lines is not None and not manifests:
+        raise Misuse("--lines: applies to a manifest (.toml) of measured files only")
+    lines = args.lines or "same"
+    data = load(args.data, "data", lines)
+    validation = load(args.validation, "--validation", lines) if args.validation else None
+    return data, validation
+
+
 def out_dir(out: str) -> None:
     """Refuse an output folder that cannot be written, before any computation."""
     if not out.strip():

@@ -18,7 +18,7 @@ from lpvid._cliargs import (
     basis_of,
     fixed_of,
     labels_of,
-    load,
+    load_data,
     misuse,
     one_line,
     out_dir,
@@ -209,12 +209,7 @@ def _fit(args: argparse.Namespace) -> int:
         raise Misuse(
             "--tolerance: applies to the choice by validation error; give --validation too"
         )
-    manifests = [f for f in (args.data, args.validation) if f and f.lower().endswith(".toml")]
-    if args.lines is not None and not manifests:
-        raise Misuse("--lines: applies to a manifest (.toml) of measured files only")
-    lines = args.lines or "same"
-    data = load(args.data, "data", lines)
-    validation = load(args.validation, "--validation", lines) if args.validation else None
+    data, validation = load_data(args)
     basis = basis_of(args.basis, args.domain, data, validation)
     say(f"data: {data}")
 

@@ -16,7 +16,7 @@ from lpvid._cliargs import (
     basis_of,
     fixed_of,
     labels_of,
-    load,
+    load_data,
     misuse,
     out_dir,
     printer,
@@ -162,12 +162,7 @@ def run(args: argparse.Namespace) -> int:
     fixed = fixed_of(args.fix)
     if not math.isfinite(args.tolerance) or args.tolerance < 0:
         raise Misuse(f"--tolerance: expected a finite number >= 0, got {args.tolerance}")
-    manifests = [f for f in (args.data, args.validation) if f and f.lower().endswith(".toml")]
-    if args.lines is not None and not manifests:
-        raise Misuse("--lines: applies to a manifest (.toml) of measured files only")
-    lines = args.lines or "same"
-    data = load(args.data, "data", lines)
-    validation = load(args.validation, "--validation", lines) if args.validation else None
+    data, validation = load_data(args)
     bases = _bases(args, data, validation)
     say(f"data: {data}")
     with ExitStack() as stack:
