@@ -25,6 +25,20 @@ _local = threading.local()
 _state: dict[str, Any] = {"count": 0, "show": None, "filter": None}
 
 
+def _filters_changed() -> None:
+    """Tell the warnings machinery that ``warnings.filters`` changed (drops its caches).
+
+    A private hook of CPython (``_filters_mutated`` up to 3.13); where it is
+    missing, changing the filters through the public API has the same effect.
+    """
+    hook = getattr(warnings, "_filters_mutated", None)
+    if hook is not None:
+        hook()
+    else:  # pragma: no cover - other Pythons
+        warnings.filterwarnings("default", message="\\Z.never-matches\\A", append=True)
+        warnings.filters.pop()
+
+
 def _route(message: Any, category: Any, filename: Any, lineno: Any, *rest: Any) -> None:
     sink = getattr(_local, "sink", None)
     if sink is not None:
@@ -55,7 +69,7 @@ def collected() -> Iterator[list[tuple[type[Warning], str]]]:
             # inserted as is: simplefilter would first remove an equal filter in place
             _state["filter"] = ("always", None, Warning, None, 0)
             warnings.filters.insert(0, _state["filter"])
-            warnings._filters_mutated()  # type: ignore[attr-defined]
+            _filters_changed()
         _state["count"] += 1
     _local.sink = sink
     try:
@@ -70,5 +84,5 @@ def collected() -> Iterator[list[tuple[type[Warning], str]]]:
                 ours = [k for k, f in enumerate(warnings.filters) if f is _state["filter"]]
                 if ours:  # else the filters were replaced meanwhile
                     del warnings.filters[ours[0]]
-                warnings._filters_mutated()  # type: ignore[attr-defined]
+                _filters_changed()
                 _state["show"] = _state["filter"] = None
