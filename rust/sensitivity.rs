@@ -9,13 +9,10 @@
 //! propagation combines it with the parameter covariance folded by the
 //! basis values (see Python's `lpvid.Covariance.frf_std`).
 
-use crate::error::{Error, Result};
-use crate::lanes::LANES;
+use crate::error::Result;
 use crate::layout::Shape;
-use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
-use crate::response::with_constant;
+use crate::response::sweep_lines;
 use num_complex::Complex64 as C64;
-use rayon::prelude::*;
 
 /// Jacobian of the frozen frequency response with respect to the frozen LTI
 /// parameters at every (point, line), `(N, F, l, r, lti_len)` row-major,
@@ -33,55 +30,42 @@ pub fn lti_jacobian(
     n_points: usize,
     z: &[C64],
 ) -> Result<Vec<C64>> {
-    shape.check_theta(theta)?;
-    let psi = with_constant(basis, n_points, shape.nb)?;
     let Shape { n, r, l, .. } = *shape;
     let (na, nb, nc) = (n * n, n * r, l * n);
-    let lti = shape.lti_len();
-    let m = shape.n_coef();
-    let row = lti;
+    let row = shape.lti_len();
     let per_line = l * r * row;
-    let stride = z.len() * per_line;
-    let mut out = vec![C64::new(0.0, 0.0); n_points * stride];
-    if stride == 0 {
-        return Ok(out);
-    }
-    out.par_chunks_mut(stride)
-        .enumerate()
-        .try_for_each(|(q, chunk)| {
-            let form = Hessenberg::new(shape, &Frozen::at(shape, theta, &psi[q * m..(q + 1) * m]));
-            let mut res = Resolvent::new(shape);
-            for first in (0..z.len()).step_by(LANES) {
-                let end = (first + LANES).min(z.len());
-                res.evaluate(&form, &lanes_of(z, first, end), true)
-                    .map_err(|lane| Error::Singular {
-                        point: q,
-                        line: (first + lane).min(end - 1),
-                    })?;
-                for (lane, k) in (first..end).enumerate() {
-                    for j in 0..l {
-                        for c in 0..r {
-                            let dst = &mut chunk[k * per_line + (j * r + c) * row..][..row];
-                            for b in 0..n {
-                                let xb = res.x[c * n + b].lane(lane);
-                                for a in 0..n {
-                                    dst[a + b * n] = res.yt[j * n + a].lane(lane) * xb;
-                                }
-                            }
+    sweep_lines(
+        shape,
+        theta,
+        basis,
+        n_points,
+        z,
+        per_line,
+        true,
+        |_, chunk, res, first, end| {
+            for (lane, k) in (first..end).enumerate() {
+                for j in 0..l {
+                    for c in 0..r {
+                        let dst = &mut chunk[k * per_line + (j * r + c) * row..][..row];
+                        for b in 0..n {
+                            let xb = res.x[c * n + b].lane(lane);
                             for a in 0..n {
-                                dst[na + a + c * n] = res.yt[j * n + a].lane(lane);
+                                dst[a + b * n] = res.yt[j * n + a].lane(lane) * xb;
                             }
-                            for b in 0..n {
-                                dst[na + nb + j + b * l] = res.x[c * n + b].lane(lane);
-                            }
-                            dst[na + nb + nc + j + c * l] = C64::new(1.0, 0.0);
                         }
+                        for a in 0..n {
+                            dst[na + a + c * n] = res.yt[j * n + a].lane(lane);
+                        }
+                        for b in 0..n {
+                            dst[na + nb + j + b * l] = res.x[c * n + b].lane(lane);
+                        }
+                        dst[na + nb + nc + j + c * l] = C64::new(1.0, 0.0);
                     }
                 }
             }
             Ok(())
-        })?;
-    Ok(out)
+        },
+    )
 }
 
 #[cfg(test)]
