@@ -1,5 +1,7 @@
 """Bad input gets a ValueError or TypeError that names the argument."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -182,3 +184,21 @@ def test_no_panic_reaches_python_from_the_core():
         prob.gauss_newton(np.zeros(4), np.ones(3, bool))
     with pytest.raises(ValueError, match=r"^theta: contains NaN or Inf"):
         prob.vnls(np.full(4, np.nan))
+
+
+def test_errors_beyond_float64_come_back_as_inf_with_a_warning(rng):
+    """vnls and residual say so when the weighted error overflows float64."""
+    model = random_lpv(rng, n=2, r=1, l=1, nb=1)
+    p, f = np.array([0.2, 0.8]), np.array([1.0, 5.0])
+    G = model.frf(f, p)
+    fine = lpvid.FrfData(p, f, G + 1.0, sigma=1.0, Ts=model.Ts)
+    # errors of 1e10 / 1e-300 = 1e310 sigma: beyond float64
+    huge = lpvid.FrfData(p, f, G + 1e10, sigma=1e-300, Ts=model.Ts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert lpvid.vnls(model, fine) == pytest.approx(2 * 2)  # |1|^2 at 4 entries, sigma 1
+        assert np.all(np.isfinite(lpvid.residual(model, fine)))
+    with pytest.warns(RuntimeWarning, match=r"^vnls: V_NLS is not finite"):
+        assert lpvid.vnls(model, huge) == np.inf
+    with pytest.warns(RuntimeWarning, match=r"^residual: some entries are not finite"):
+        assert not np.all(np.isfinite(lpvid.residual(model, huge)))

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid import _core
+from lpvid._checks import same_sample_time
 from lpvid.data import FrfData
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
@@ -27,11 +28,7 @@ def check_compatible(model: LpvModel, data: FrfData) -> None:
             f"data: has {data.n_outputs} outputs x {data.n_inputs} inputs, the model "
             f"{model.n_outputs} x {model.n_inputs}"
         )
-    if (model.Ts is None) != (data.Ts is None) or (
-        model.Ts is not None
-        and data.Ts is not None
-        and not np.isclose(model.Ts, data.Ts, rtol=1e-12)
-    ):
+    if not same_sample_time(model.Ts, data.Ts):
         raise ValueError(f"data: sample time Ts={data.Ts} differs from the model's Ts={model.Ts}")
     if model.basis.n_params != data.n_params:
         raise ValueError(
@@ -92,9 +89,20 @@ def vnls_value(model: LpvModel, data: FrfData) -> float:
 
 
 def residual(model: LpvModel, data: FrfData) -> NDArray[np.complex128]:
-    """Weighted residual ``(G(theta) - Gm) / sigma``, shape ``(N, F, l, r)``."""
-    out = build_problem(model, data).residual(model.theta)
-    return out.reshape(data.G.shape)
+    """Weighted residual ``(G(theta) - Gm) / sigma``, shape ``(N, F, l, r)``.
+
+    Entries beyond the range of float64 (errors beyond about 1e308 sigma)
+    come back as ``inf`` with a ``RuntimeWarning``, as in :func:`vnls`.
+    """
+    out = build_problem(model, data).residual(model.theta).reshape(data.G.shape)
+    if not np.all(np.isfinite(out)):
+        warnings.warn(
+            "residual: some entries are not finite: the model's errors on these data are beyond "
+            "the range of float64",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return out
 
 
 def gauss_newton(
