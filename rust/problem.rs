@@ -138,26 +138,35 @@ impl Problem {
                 |ws, (task, slice)| self.task_gram(&forms[task.point], task, slice, ws),
             )
             .collect::<Result<Vec<_>>>()?;
+        // Fold the tasks' lower triangles into one symmetric Gram matrix per
+        // point, the points in parallel (each sums its tasks in task order).
         let n_points = self.data.n_points();
-        let mut grams = vec![vec![0.0; lti * lti]; n_points];
-        let mut jtr = vec![vec![0.0; lti]; n_points];
+        let mut by_point: Vec<Vec<TaskGram>> = (0..n_points).map(|_| Vec::new()).collect();
         for part in parts {
-            let (h, b) = (&mut grams[part.point], &mut jtr[part.point]);
-            for j in 0..lti {
-                let col = part.gram.col(j);
-                for i in j..lti {
-                    h[i + j * lti] += col[i];
-                }
-            }
-            b.iter_mut().zip(&part.jtr).for_each(|(x, y)| *x += y);
+            by_point[part.point].push(part);
         }
-        for h in grams.iter_mut() {
-            for j in 0..lti {
-                for i in j + 1..lti {
-                    h[j + i * lti] = h[i + j * lti];
+        let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = by_point
+            .into_par_iter()
+            .map(|tasks| {
+                let mut h = vec![0.0; lti * lti];
+                let mut b = vec![0.0; lti];
+                for part in &tasks {
+                    for j in 0..lti {
+                        let col = part.gram.col(j);
+                        for i in j..lti {
+                            h[i + j * lti] += col[i];
+                        }
+                    }
+                    b.iter_mut().zip(&part.jtr).for_each(|(x, y)| *x += y);
                 }
-            }
-        }
+                for j in 0..lti {
+                    for i in j + 1..lti {
+                        h[j + i * lti] = h[i + j * lti];
+                    }
+                }
+                (h, b)
+            })
+            .unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
         let (gradient, gram) = self.assemble(&grams, &jtr, free);
         Ok(GaussNewton {
@@ -357,23 +366,28 @@ impl Problem {
             by_basis[i].push((a, p));
         }
         let nf = free.len();
-        let mut gram = vec![0.0; nf * nf];
-        let mut s = vec![0.0; lti * lti];
-        for i in 0..m {
-            for j in i..m {
-                s.iter_mut().for_each(|v| *v = 0.0);
+        // S_ij for every pair i <= j of basis indices, the pairs in parallel.
+        let pairs: Vec<(usize, usize)> = (0..m).flat_map(|i| (i..m).map(move |j| (i, j))).collect();
+        let sums: Vec<Vec<f64>> = pairs
+            .par_iter()
+            .map(|&(i, j)| {
+                let mut s = vec![0.0; lti * lti];
                 for (q, hq) in full.iter().enumerate().take(n_points) {
                     let c = self.psi(q)[i] * self.psi(q)[j];
                     if c != 0.0 {
                         s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h);
                     }
                 }
-                for &(b, pv) in &by_basis[j] {
-                    for &(a, pu) in &by_basis[i] {
-                        let v = s[pu + pv * lti];
-                        gram[a + b * nf] = v;
-                        gram[b + a * nf] = v;
-                    }
+                s
+            })
+            .collect();
+        let mut gram = vec![0.0; nf * nf];
+        for (&(i, j), s) in pairs.iter().zip(&sums) {
+            for &(b, pv) in &by_basis[j] {
+                for &(a, pu) in &by_basis[i] {
+                    let v = s[pu + pv * lti];
+                    gram[a + b * nf] = v;
+                    gram[b + a * nf] = v;
                 }
             }
         }
