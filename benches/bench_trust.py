@@ -18,27 +18,16 @@ Run: python benches/bench_trust.py [--repeat 20]
 from __future__ import annotations
 
 import argparse
-import time
 import warnings
 
 import numpy as np
+from bench_core import median_time
 
 import lpvid
 from lpvid.cost import build_problem
 from lpvid.trust.enforce import check_points
 from lpvid.trust.ranges import check_range
 from lpvid.trust.refit import dropped_mask
-
-
-def median_time(fn, repeat: int) -> float:
-    """Median wall time of ``fn()`` in seconds, after a warm-up call."""
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
 
 
 def main() -> None:

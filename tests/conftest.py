@@ -14,6 +14,14 @@ def rng() -> np.random.Generator:
 
 
 @pytest.fixture
+def plt():
+    """matplotlib.pyplot (the test is skipped without the plot extra); figures closed after."""
+    pyplot = pytest.importorskip("matplotlib.pyplot")
+    yield pyplot
+    pyplot.close("all")
+
+
+@pytest.fixture
 def python_sigint():
     """Python's SIGINT handler (KeyboardInterrupt) for one test; the old handler restored.
 

@@ -15,14 +15,6 @@ from lpvid import plots
 from lpvid.testing import direct_frf, noisy_data, random_lpv
 
 
-@pytest.fixture
-def plt():
-    """matplotlib.pyplot (the test is skipped without the plot extra); figures closed after."""
-    pyplot = pytest.importorskip("matplotlib.pyplot")
-    yield pyplot
-    pyplot.close("all")
-
-
 def _db(x):
     return 20 * np.log10(np.abs(x))
 

@@ -53,6 +53,24 @@ OPTIONS = {
 }
 
 
+def add_domain(parser: argparse.ArgumentParser) -> None:
+    """The ``--domain LO HI`` option of ``lpvid fit`` and ``lpvid select``."""
+    parser.add_argument(
+        "--domain",
+        nargs=2,
+        type=float,
+        metavar=("LO", "HI"),
+        help="scheduling range mapped to [-1, 1] (default: the range of the data)",
+    )
+
+
+def add_outputs(parser: argparse.ArgumentParser) -> None:
+    """``--out`` (required), ``--no-figures`` and ``--quiet`` of ``fit`` and ``select``."""
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--no-figures", action="store_true", help="skip the figures")
+    parser.add_argument("--quiet", action="store_true", help="print only the results")
+
+
 def misuse(exc: Exception, options: dict[str, str] | None = None) -> Misuse:
     """A library error about an argument as a misuse of the option behind it.
 

@@ -15,6 +15,8 @@ from lpvid._cliargs import (
     EXIT_MISUSE,
     Misuse,
     Parser,
+    add_domain,
+    add_outputs,
     basis_of,
     fixed_of,
     labels_of,
@@ -97,13 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="poly:2",
         help="scheduling dependency: poly:D (powers 1..D) or legendre:D (default poly:2)",
     )
-    fit.add_argument(
-        "--domain",
-        nargs=2,
-        type=float,
-        metavar=("LO", "HI"),
-        help="scheduling range mapped to [-1, 1] (default: the range of the data)",
-    )
+    add_domain(fit)
     fit.add_argument(
         "--gamma",
         nargs="+",
@@ -131,9 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a manifest: files must share their frequency lines (same, default) or "
         "only the lines all files have are kept (common)",
     )
-    fit.add_argument("--out", required=True, help="output folder")
-    fit.add_argument("--no-figures", action="store_true", help="skip the figures")
-    fit.add_argument("--quiet", action="store_true", help="print only the results")
+    add_outputs(fit)
     select_cli.add_parser(sub)
     return parser
 

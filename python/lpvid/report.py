@@ -13,6 +13,7 @@ from lpvid._files import write_atomic
 from lpvid.identified import IdentifyResult
 from lpvid.selected import SelectResult, basis_label
 from lpvid.trust.stability import stability
+from lpvid.trust.steps import refit_line
 
 __all__ = ["write_report", "key_numbers", "select_numbers", "write_select_report"]
 
@@ -210,15 +211,8 @@ def write_report(
 def _trust(result: IdentifyResult) -> list[str]:
     """The report's section on the refit, the covariance and stability over the range."""
     lines = ["## Between the points: uncertainty and stability", ""]
-    r, e = result.refit_entry, result.entry
-    if r is not None:
-        line = (
-            f"- refit on the support (dropped groups fixed at zero): V_NLS {e.vnls:.6g} -> "
-            f"{r.vnls:.6g}"
-        )
-        if e.validation_vnls is not None and r.validation_vnls is not None:
-            line += f"; validation V_NLS {e.validation_vnls:.6g} -> {r.validation_vnls:.6g}"
-        lines.append(line)
+    if result.refit_entry is not None:
+        lines.append(f"- {refit_line(result.entry, result.refit_entry)}")
     c = result.covariance
     if c is not None:
         lines.append(

@@ -13,6 +13,8 @@ import lpvid
 from lpvid._cliargs import (
     OPTIONS,
     Misuse,
+    add_domain,
+    add_outputs,
     basis_of,
     fixed_of,
     labels_of,
@@ -75,13 +77,7 @@ def add_parser(sub: Any) -> None:
         default="poly",
         help="kind of basis: powers (poly, default) or Legendre polynomials",
     )
-    sel.add_argument(
-        "--domain",
-        nargs=2,
-        type=float,
-        metavar=("LO", "HI"),
-        help="scheduling range mapped to [-1, 1] (default: the range of the data)",
-    )
+    add_domain(sel)
     sel.add_argument("--gamma", nargs="+", type=float, metavar="G", help="as in lpvid fit")
     sel.add_argument(
         "--fix", action="append", choices=("A", "B", "C", "D"), default=[], help="as in lpvid fit"
@@ -97,9 +93,7 @@ def add_parser(sub: Any) -> None:
     sel.add_argument(
         "--scheduler", metavar="ADDRESS", help="address of a Dask scheduler (tcp://host:8786)"
     )
-    sel.add_argument("--out", required=True, help="output folder")
-    sel.add_argument("--no-figures", action="store_true", help="skip the figures")
-    sel.add_argument("--quiet", action="store_true", help="print only the results")
+    add_outputs(sel)
 
 
 def _integers(text: str, option: str, minimum: int) -> list[int]:

@@ -121,19 +121,25 @@ def finish(
     )
 
 
+def refit_line(entry: Any, refit_entry: Any) -> str:
+    """One line on the refit: V_NLS (and validation V_NLS) of the path entry and of its refit."""
+    line = (
+        f"refit on the support (dropped groups fixed at zero): V_NLS {entry.vnls:.6g} -> "
+        f"{refit_entry.vnls:.6g}"
+    )
+    before, after = entry.validation_vnls, refit_entry.validation_vnls
+    if before is not None and after is not None:
+        line += f"; validation V_NLS {before:.6g} -> {after:.6g}"
+    return line
+
+
 def trust_lines(
     entry: Any, refit_entry: Any, cov: Covariance | None, report: StabilityReport | None
 ) -> list[str]:
     """Summary lines of :meth:`lpvid.IdentifyResult.summary` on the refit, covariance, stability."""
     lines = []
     if refit_entry is not None:
-        line = (
-            f"refit on the support (dropped groups fixed at 0): V_NLS {entry.vnls:.6g} -> "
-            f"{refit_entry.vnls:.6g}"
-        )
-        if entry.validation_vnls is not None and refit_entry.validation_vnls is not None:
-            line += f", validation {entry.validation_vnls:.6g} -> {refit_entry.validation_vnls:.6g}"
-        lines.append(line)
+        lines.append(refit_line(entry, refit_entry))
     if cov is not None and cov.n_unidentified:
         lines.append(
             f"covariance: rank {cov.rank}; {cov.n_unidentified} parameter direction(s) leave "
