@@ -82,6 +82,7 @@ fn bench_steps(c: &mut Criterion) {
         groups: &groups,
         gamma: 1e-3,
         n_residuals: problem.n_residuals() as f64,
+        pinned: None,
     };
     c.bench_function("gantry: SOCP solve only (build + Clarabel)", |b| {
         let mut solver = lpvid::socp::ConeSolver::default();

@@ -13,7 +13,7 @@ use crate::fit::{
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::objective::Objective;
-use crate::socp::{ConeGroup, ConeProblem, ConeSolver, DEFAULT_CONE_TOL};
+use crate::socp::{ConeGroup, ConeProblem, ConeSolver, Pinned, DEFAULT_CONE_TOL};
 use std::time::Instant;
 
 /// The reweighting rule (method.md (21)-(23)).
@@ -226,6 +226,7 @@ pub fn fit_l21(
     free: &FreeSet,
     sup_norms: &[f64],
     settings: &L21Settings,
+    pinned: Option<&Pinned>,
     monitor: &mut dyn Monitor,
 ) -> Result<Fit> {
     settings.validate()?;
@@ -257,6 +258,20 @@ pub fn fit_l21(
     let mut groups = weigh(&specs, &theta, settings);
     let mut outer = 0;
     let mut cone_solver = ConeSolver::new(settings.cone_tol);
+    // The kept-off directions, made orthonormal once in the metric of the
+    // first step.
+    let pinned = pinned.and_then(|p| {
+        let first = ConeProblem {
+            gn: &gn,
+            diag: &diag,
+            theta: &theta,
+            groups: &groups,
+            gamma: settings.gamma,
+            n_residuals: m_res,
+            pinned: None,
+        };
+        p.basis(&first.jacobi_scale(Damping::new(settings.lambda0).mu))
+    });
     'outer: while outer < settings.max_outer {
         groups = weigh(&specs, &theta, settings);
         let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();
@@ -305,6 +320,7 @@ pub fn fit_l21(
                 groups: &groups,
                 gamma: settings.gamma,
                 n_residuals: m_res,
+                pinned: pinned.as_ref(),
             };
             let objective = gn.vnls / m_res + cone.penalty(None);
             let lambda = damping.lambda();
@@ -427,6 +443,7 @@ pub fn single_cone_step(
         groups: &groups,
         gamma: settings.gamma,
         n_residuals: m_res,
+        pinned: None,
     };
     let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol));
     // g^T d + d^T (J^T J + mu D) d = -predicted decrease + mu d^T D d.
@@ -466,7 +483,7 @@ pub fn l21_path(
     let mut out = Vec::with_capacity(order.len());
     for gamma in order {
         let s = L21Settings { gamma, ..*settings };
-        let fit = fit_l21(problem, &theta, free, sup_norms, &s, monitor)?;
+        let fit = fit_l21(problem, &theta, free, sup_norms, &s, None, monitor)?;
         theta = fit.theta.clone();
         let stop = fit.stop;
         out.push((gamma, fit));

@@ -195,7 +195,7 @@ fn a_start_whose_vnls_is_not_finite_is_refused() {
             gamma,
             ..L21Settings::default()
         };
-        let l21 = fit_l21(&p, &huge, &free, &[1.0, 1.0], &settings, &mut Silent);
+        let l21 = fit_l21(&p, &huge, &free, &[1.0, 1.0], &settings, None, &mut Silent);
         assert!(is_model_error(l21));
     }
 }
@@ -264,6 +264,7 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
         groups: &groups,
         gamma,
         n_residuals: m_res,
+        pinned: None,
     };
     let step = cone
         .solve(mu, &mut ConeSolver::new(1e-10))
@@ -337,7 +338,7 @@ fn fit_l21_drops_exactly_the_zero_groups() {
         ..L21Settings::default()
     };
     assert!(magnitudes(&p, &start, &settings).iter().all(|&m| m > 1e-3));
-    let fit = fit_l21(&p, &start, &free, &[1.0, 1.0], &settings, &mut Silent).unwrap();
+    let fit = fit_l21(&p, &start, &free, &[1.0, 1.0], &settings, None, &mut Silent).unwrap();
     assert!(fit.stop.converged(), "{:?}", fit.stop);
     assert!(fit
         .history

@@ -164,6 +164,7 @@ def fit_l21(
     settings: _Settings,
     callback: _Callback = None,
     stable: FrozenRange | None = None,
+    pinned: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
 ) -> dict[str, Any]: ...
 def l21_path(
     problem: _AnyProblem,

@@ -11,8 +11,10 @@ use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, LmSettings};
 use crate::objective::Objective;
+use crate::socp::Pinned;
 use crate::stable::Stable;
-use numpy::PyReadonlyArray1;
+use faer::Mat;
+use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
@@ -309,7 +311,7 @@ fn fit_nls_py<'py>(
 
 /// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`. Returns a dict.
 #[pyfunction]
-#[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None, stable=None))]
+#[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None, stable=None, pinned=None))]
 #[allow(clippy::too_many_arguments)]
 fn fit_l21_py<'py>(
     py: Python<'py>,
@@ -320,6 +322,7 @@ fn fit_l21_py<'py>(
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
+    pinned: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
@@ -328,12 +331,58 @@ fn fit_l21_py<'py>(
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
     let stable = stable.as_deref();
+    let pinned = pinned
+        .map(|(dirs, exempt, weight)| pinned_directions(&dirs, &exempt, weight, free.len()))
+        .transpose()?;
     let (fit, signalled) = with_monitor(py, callback, |monitor| {
         with_stability(problem, stable, |objective| {
-            fit_l21(objective, &theta, &free, &sup, &settings, monitor)
+            fit_l21(
+                objective,
+                &theta,
+                &free,
+                &sup,
+                &settings,
+                pinned.as_ref(),
+                monitor,
+            )
         })
     })?;
     fit_dict(py, fit, signalled)
+}
+
+/// The directions a fit keeps its cone steps off (see `socp::Pinned`):
+/// two arrays over the free parameters, one direction per column.
+fn pinned_directions(
+    dirs: &PyReadonlyArray2<'_, f64>,
+    exempt: &PyReadonlyArray2<'_, f64>,
+    weight: f64,
+    n_free: usize,
+) -> PyResult<Pinned> {
+    let matrix = |a: &PyReadonlyArray2<'_, f64>, name: &str| -> PyResult<Mat<f64>> {
+        let v = a.as_array();
+        if v.nrows() != n_free {
+            return Err(PyValueError::new_err(format!(
+                "pinned: {name} needs one row per free parameter ({n_free}), got {}",
+                v.nrows()
+            )));
+        }
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "pinned: {name} holds NaN or Inf"
+            )));
+        }
+        Ok(Mat::from_fn(v.nrows(), v.ncols(), |i, j| v[[i, j]]))
+    };
+    if !(weight.is_finite() && weight >= 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "pinned: the weight must be finite and >= 0, got {weight}"
+        )));
+    }
+    Ok(Pinned {
+        dirs: matrix(dirs, "dirs")?,
+        exempt: matrix(exempt, "exempt")?,
+        weight,
+    })
 }
 
 /// Warm-started gamma path; returns a list of (gamma, dict), largest gamma first.

@@ -24,8 +24,12 @@
 //! solve is needed at all. Groups that the solver leaves at a negligible
 //! size are set exactly to zero, so that the next step can fix them.
 
+mod group;
+mod pinned;
 mod program;
 
+pub use group::ConeGroup;
+pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
 
 use crate::dense::{cholesky, lower_solve, lower_transpose_solve};
@@ -43,67 +47,6 @@ pub const SNAP: f64 = 1e-9;
 /// Most rounds of the active-set check per step.
 const MAX_ROUNDS: usize = 8;
 
-/// One penalised group as the cone step sees it.
-#[derive(Debug, Clone)]
-pub struct ConeGroup {
-    /// Every entry of `theta_g`: its index in theta and, when free, its
-    /// position among the free parameters.
-    pub entries: Vec<(usize, Option<usize>)>,
-    /// Reweighting weight `phi_g`.
-    pub phi: f64,
-    /// Scale `varphi_g` of (25).
-    pub varphi: f64,
-}
-
-impl ConeGroup {
-    /// `|| theta_g ||` at a parameter vector.
-    pub fn norm_at(&self, theta: &[f64]) -> f64 {
-        self.entries
-            .iter()
-            .map(|&(i, _)| theta[i] * theta[i])
-            .sum::<f64>()
-            .sqrt()
-    }
-
-    /// `|| theta_g + d_g ||` for a step over the free parameters.
-    pub fn norm_after(&self, theta: &[f64], d: &[f64]) -> f64 {
-        self.entries
-            .iter()
-            .map(|&(i, pos)| {
-                let v = theta[i] + pos.map_or(0.0, |p| d[p]);
-                v * v
-            })
-            .sum::<f64>()
-            .sqrt()
-    }
-
-    /// Whether any entry is free.
-    pub fn is_active(&self) -> bool {
-        self.entries.iter().any(|e| e.1.is_some())
-    }
-
-    /// Whether a step can bring the whole group to zero: every fixed entry is zero.
-    fn can_vanish(&self, theta: &[f64]) -> bool {
-        self.entries
-            .iter()
-            .all(|&(i, pos)| pos.is_some() || theta[i] == 0.0)
-    }
-
-    /// `|| v_g ||` over the free entries of a vector over the free parameters.
-    fn free_norm(&self, v: &[f64]) -> f64 {
-        self.entries
-            .iter()
-            .filter_map(|e| e.1)
-            .map(|p| v[p] * v[p])
-            .sum::<f64>()
-            .sqrt()
-    }
-
-    fn free_positions(&self) -> impl Iterator<Item = usize> + '_ {
-        self.entries.iter().filter_map(|e| e.1)
-    }
-}
-
 /// The data of one cone step.
 #[derive(Debug, Clone, Copy)]
 pub struct ConeProblem<'a> {
@@ -119,6 +62,8 @@ pub struct ConeProblem<'a> {
     pub gamma: f64,
     /// Number of complex residuals `M`.
     pub n_residuals: f64,
+    /// Directions the step is kept off, if any.
+    pub pinned: Option<&'a PinnedBasis>,
 }
 
 /// Result of one cone solve.
@@ -154,8 +99,9 @@ impl ConeProblem<'_> {
                 .sum::<f64>()
     }
 
-    /// `P = (2/M)(J^T J + mu D)` times `d`, plus `g/M`: the gradient of the
-    /// quadratic model at the step `d` (free parameters, unscaled).
+    /// `P = (2/M)(J^T J + mu D)` times `d`, plus `g/M` (and the pinned
+    /// curvature times `d`, when set): the gradient of the quadratic model at
+    /// the step `d` (free parameters, unscaled).
     pub fn model_gradient(&self, mu: f64, d: &[f64]) -> Vec<f64> {
         let nf = self.gn.dim();
         let m = self.n_residuals;
@@ -169,7 +115,21 @@ impl ConeProblem<'_> {
             out.iter_mut().zip(col).for_each(|(o, h)| *o += c * h);
             out[j] += c * mu * self.diag[j];
         }
+        if let Some(p) = self.pinned {
+            p.add_gradient(d, &mut out);
+        }
         out
+    }
+
+    /// Jacobi scaling: `P = S (2/M)(H + mu D) S` has a unit diagonal.
+    pub fn jacobi_scale(&self, mu: f64) -> Vec<f64> {
+        let nf = self.gn.dim();
+        (0..nf)
+            .map(|i| {
+                1.0 / (2.0 / self.n_residuals * (self.gn.gram[i + i * nf] + mu * self.diag[i]))
+                    .sqrt()
+            })
+            .collect()
     }
 
     /// The largest gradient a group at zero may have: `gamma phi varphi`.
@@ -187,6 +147,11 @@ impl ConeProblem<'_> {
         // Prediction: the groups whose gradient at the current point stays
         // well inside their bound, confirmed at the point where all of them
         // are at zero.
+        let scale = self.jacobi_scale(mu);
+        if scale.iter().any(|s| !s.is_finite()) {
+            return ConeStep::failed("the quadratic has a zero or non-finite diagonal");
+        }
+        let curvature = self.pinned.map(|p| p.scaled_curvature(&scale));
         let grad0 = self.model_gradient(mu, &vec![0.0; nf]);
         let mut zero: Vec<bool> = vec![false; self.groups.len()];
         for &k in &active {
@@ -202,7 +167,7 @@ impl ConeProblem<'_> {
         let mut iterations = 0;
         let mut solves = 0;
         for _ in 0..MAX_ROUNDS {
-            let round = self.solve_with(mu, &zero, cache);
+            let round = self.solve_with(mu, &zero, &scale, curvature.as_ref(), cache);
             iterations += round.iterations;
             solves += usize::from(round.solved);
             let Some(mut d) = round.step else {
@@ -271,19 +236,19 @@ impl ConeProblem<'_> {
     /// Schur complement, which shrinks the dense block Clarabel works with,
     /// and recovered after. With no group left, that elimination is the
     /// whole solution.
-    fn solve_with(&self, mu: f64, zero: &[bool], cache: &mut ConeSolver) -> Round {
+    fn solve_with(
+        &self,
+        mu: f64,
+        zero: &[bool],
+        scale: &[f64],
+        extra: Option<&Mat<f64>>,
+        cache: &mut ConeSolver,
+    ) -> Round {
         let nf = self.gn.dim();
         let m_res = self.n_residuals;
-        // Jacobi scaling: P = S (2/M)(H + mu D) S has a unit diagonal.
-        let scale: Vec<f64> = (0..nf)
-            .map(|i| 1.0 / (2.0 / m_res * (self.gn.gram[i + i * nf] + mu * self.diag[i])).sqrt())
-            .collect();
-        if scale.iter().any(|s| !s.is_finite()) {
-            return Round::failed("the quadratic has a zero or non-finite diagonal");
-        }
         let p_full = |i: usize, j: usize| {
             let h = self.gn.gram[i + j * nf] + if i == j { mu * self.diag[i] } else { 0.0 };
-            2.0 / m_res * h * scale[i] * scale[j]
+            2.0 / m_res * h * scale[i] * scale[j] + extra.map_or(0.0, |e| e[(i, j)])
         };
         // The fixed groups' steps in scaled variables, folded into q.
         let d_zero = self.zero_step(zero);
@@ -356,7 +321,7 @@ impl ConeProblem<'_> {
                 false,
             )
         } else {
-            let program = self.program(&open, &scale, &p_red, q_red);
+            let program = self.program(&open, scale, &p_red, q_red);
             let sol = match cache.run(&program) {
                 Ok(sol) => sol,
                 Err(why) => return Round::failed(&why),
@@ -395,7 +360,7 @@ impl ConeProblem<'_> {
                 e[p] = -rhs[(a, 0)];
             }
         }
-        let step: Vec<f64> = e.iter().zip(&scale).map(|(x, s)| x * s).collect();
+        let step: Vec<f64> = e.iter().zip(scale).map(|(x, s)| x * s).collect();
         let finite = step.iter().all(|v| v.is_finite());
         Round {
             step: finite.then_some(step),

@@ -1,0 +1,219 @@
+//! Directions the cone steps are kept off: moves that cost nothing at the
+//! data but change the model between the scheduling points.
+//!
+//! With as many scheduling points as coefficient matrices, a state
+//! transformation applied at one point alone is a direction of theta along
+//! which V_NLS does not change; the l2,1 term can then buy smaller groups
+//! with moves that only the points in between see. A step is kept off such
+//! directions by a curvature `weight` added along them, measured in the
+//! Jacobi-scaled variables of the fit's first step (where the quadratic has
+//! a unit diagonal). Transformations that are the same at every point (the
+//! exempt directions) change nothing anywhere, so the steps stay free along
+//! them.
+
+use faer::Mat;
+use nalgebra::DMatrix;
+
+/// Singular values below this fraction of the largest are dropped when the
+/// directions are made orthonormal.
+const RANK_TOL: f64 = 1e-9;
+
+/// Directions over the free parameters that the cone steps are kept off.
+#[derive(Debug, Clone)]
+pub struct Pinned {
+    /// Directions to keep off, one per column (free parameters, unscaled).
+    pub dirs: Mat<f64>,
+    /// Directions left free (the same transformation at every point).
+    pub exempt: Mat<f64>,
+    /// Curvature along each kept-off direction, relative to the unit
+    /// diagonal of the scaled quadratic.
+    pub weight: f64,
+}
+
+/// The kept-off directions of one fit, made orthonormal once in the metric
+/// of its first step.
+#[derive(Debug, Clone)]
+pub struct PinnedBasis {
+    /// `S0^-1 V`: the orthonormal directions `V` (scaled variables of the
+    /// first step, scale `S0`) as rows over the unscaled parameters.
+    u: Mat<f64>,
+    weight: f64,
+}
+
+/// Orthonormal columns spanning those of `m` (by a thin SVD), singular
+/// values up to `RANK_TOL` times `reference` (or the largest, if larger)
+/// dropped: a caller that projected `m` passes its size before, so that
+/// what the projection left as rounding is not taken for a direction.
+fn orthonormal(m: &DMatrix<f64>, reference: f64) -> DMatrix<f64> {
+    if m.ncols() == 0 || m.nrows() == 0 {
+        return DMatrix::zeros(m.nrows(), 0);
+    }
+    let svd = m.clone().svd(true, false);
+    let top = svd
+        .singular_values
+        .iter()
+        .cloned()
+        .fold(reference, f64::max);
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| top > 0.0 && svd.singular_values[k] > RANK_TOL * top)
+        .collect();
+    match svd.u {
+        Some(u) => DMatrix::from_fn(m.nrows(), keep.len(), |i, c| u[(i, keep[c])]),
+        None => DMatrix::zeros(m.nrows(), 0),
+    }
+}
+
+impl Pinned {
+    /// The directions in the scaled variables `e = d / scale0` of a fit's
+    /// first step: orthonormal, with the exempt ones projected out. `None`
+    /// when the sizes do not match `scale0` or nothing is left to keep off.
+    pub fn basis(&self, scale0: &[f64]) -> Option<PinnedBasis> {
+        let nf = scale0.len();
+        if self.dirs.nrows() != nf
+            || self.exempt.nrows() != nf
+            || self.weight == 0.0
+            || scale0.iter().any(|s| !(s.is_finite() && *s > 0.0))
+        {
+            return None;
+        }
+        let scaled = |m: &Mat<f64>| DMatrix::from_fn(nf, m.ncols(), |i, c| m[(i, c)] / scale0[i]);
+        let g = orthonormal(&scaled(&self.exempt), 0.0);
+        let mut w = scaled(&self.dirs);
+        let before = w.norm();
+        if g.ncols() > 0 {
+            let proj = &g * (g.transpose() * &w);
+            w -= proj;
+        }
+        let v = orthonormal(&w, before);
+        if v.ncols() == 0 {
+            return None;
+        }
+        Some(PinnedBasis {
+            u: Mat::from_fn(nf, v.ncols(), |i, c| v[(i, c)] / scale0[i]),
+            weight: self.weight,
+        })
+    }
+}
+
+impl PinnedBasis {
+    /// The added curvature in the scaled variables `e = d / scale` of a
+    /// step: `weight (S U)(S U)^T`, the same quadratic in the unscaled step
+    /// at every scale.
+    pub fn scaled_curvature(&self, scale: &[f64]) -> Mat<f64> {
+        let root = self.weight.sqrt();
+        let su = Mat::from_fn(self.u.nrows(), self.u.ncols(), |i, c| {
+            self.u[(i, c)] * scale[i] * root
+        });
+        &su * su.transpose()
+    }
+
+    /// Adds the curvature's gradient at the unscaled step `d`,
+    /// `weight U (U^T d)`, to `out`.
+    pub fn add_gradient(&self, d: &[f64], out: &mut [f64]) {
+        for c in 0..self.u.ncols() {
+            let col = self.u.col(c);
+            let dot: f64 = (0..d.len()).map(|i| col[i] * d[i]).sum();
+            let f = self.weight * dot;
+            out.iter_mut()
+                .enumerate()
+                .for_each(|(i, o)| *o += f * col[i]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic, irregular matrix.
+    fn filled(rows: usize, cols: usize, seed: f64) -> Mat<f64> {
+        Mat::from_fn(rows, cols, |i, j| {
+            ((i * i * 3 + j * 5 + i * j * 11) as f64 * 0.37 + seed).sin()
+        })
+    }
+
+    #[test]
+    fn basis_is_orthonormal_in_the_first_metric_and_leaves_the_exempt_free() {
+        let nf = 8;
+        let exempt = filled(nf, 2, 0.1);
+        // Two kept-off directions plus one inside the exempt span.
+        let dirs = Mat::from_fn(nf, 3, |i, j| match j {
+            0 | 1 => filled(nf, 2, 1.3)[(i, j)],
+            _ => exempt[(i, 0)] - 2.0 * exempt[(i, 1)],
+        });
+        let scale0: Vec<f64> = (0..nf).map(|i| 0.5 + 0.25 * i as f64).collect();
+        let pinned = Pinned {
+            dirs,
+            exempt: exempt.clone(),
+            weight: 2.0,
+        };
+        let basis = pinned.basis(&scale0).expect("two directions are left");
+        assert_eq!(basis.u.ncols(), 2);
+        let v = Mat::from_fn(nf, 2, |i, c| basis.u[(i, c)] * scale0[i]);
+        let gram = v.transpose() * &v;
+        for a in 0..2 {
+            for b in 0..2 {
+                let want = if a == b { 1.0 } else { 0.0 };
+                assert!((gram[(a, b)] - want).abs() < 1e-12);
+            }
+        }
+        // Orthogonal to the exempt directions in the scaled variables.
+        let scaled_exempt = Mat::from_fn(nf, 2, |i, c| exempt[(i, c)] / scale0[i]);
+        let cross = v.transpose() * &scaled_exempt;
+        for a in 0..2 {
+            for b in 0..2 {
+                assert!(cross[(a, b)].abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn gradient_is_the_curvature_at_every_scale() {
+        let nf = 6;
+        let pinned = Pinned {
+            dirs: filled(nf, 3, 0.7),
+            exempt: filled(nf, 1, 2.1),
+            weight: 1.5,
+        };
+        let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + 0.1 * i as f64).collect();
+        let basis = pinned.basis(&scale0).expect("directions are left");
+        let scale: Vec<f64> = (0..nf).map(|i| 0.3 + 0.2 * i as f64).collect();
+        let curvature = basis.scaled_curvature(&scale);
+        let d: Vec<f64> = (0..nf).map(|i| (i as f64 * 1.7).cos()).collect();
+        // Unscaled curvature S^-1 C S^-1 times d, against add_gradient.
+        let mut grad = vec![0.0; nf];
+        basis.add_gradient(&d, &mut grad);
+        for i in 0..nf {
+            let want: f64 = (0..nf)
+                .map(|j| curvature[(i, j)] / (scale[i] * scale[j]) * d[j])
+                .sum();
+            assert!((grad[i] - want).abs() < 1e-12 * (1.0 + want.abs()));
+        }
+    }
+
+    #[test]
+    fn nothing_to_keep_off_inside_the_exempt_span_or_at_zero_weight() {
+        let nf = 5;
+        let exempt = filled(nf, 2, 0.4);
+        let inside = Mat::from_fn(nf, 1, |i, _| 3.0 * exempt[(i, 0)] + exempt[(i, 1)]);
+        let scale0 = vec![1.0; nf];
+        let within = Pinned {
+            dirs: inside,
+            exempt: exempt.clone(),
+            weight: 1.0,
+        };
+        assert!(within.basis(&scale0).is_none());
+        let unweighted = Pinned {
+            dirs: filled(nf, 2, 3.0),
+            exempt,
+            weight: 0.0,
+        };
+        assert!(unweighted.basis(&scale0).is_none());
+        assert!(Pinned {
+            weight: 1.0,
+            ..unweighted.clone()
+        }
+        .basis(&[1.0, f64::NAN, 1.0, 1.0, 1.0])
+        .is_none());
+    }
+}
