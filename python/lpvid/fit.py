@@ -21,6 +21,7 @@ from lpvid.layout import free_mask
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
+from lpvid.similarity import pointwise_similarity_directions, similarity_directions
 from lpvid.timecost import combined_problem
 
 __all__ = ["fit_nls", "fit_l21", "l21_path", "lm_settings", "raise_if_interrupted"]
@@ -30,6 +31,12 @@ R = TypeVar("R", FitResult, L21Result)
 
 #: The stop code of a fit that Ctrl-C (SIGINT) stopped.
 KEYBOARD_INTERRUPT = "keyboard_interrupt"
+
+#: Curvature that ``fit_l21(..., pinned=True)`` adds along the flat
+#: directions, relative to the unit diagonal of the Jacobi-scaled step
+#: (measured on the positioning stage: 1 keeps its interpolation; 100 and
+#: more keep more groups).
+PIN_WEIGHT = 1.0
 
 
 def _monitor(callback: Callback | None) -> Callback | None:
@@ -204,17 +211,30 @@ def fit_nls(
     return result
 
 
-def _check_stable(stable: Any) -> bool:
-    if not isinstance(stable, (bool, np.bool_)):
-        raise TypeError(f"stable: expected True or False, got {type(stable).__name__}")
-    return bool(stable)
+def _check_flag(value: Any, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected True or False, got {type(value).__name__}")
+    return bool(value)
+
+
+def _pinned(
+    model: LpvModel, data: FrfData, free: np.ndarray, pinned: Any
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """The flat directions a pinned fit keeps its steps off, over the free parameters."""
+    if not _check_flag(pinned, "pinned"):
+        return None
+    W = pointwise_similarity_directions(model, data.p)
+    if W.shape[1] == 0:
+        return None
+    exempt = similarity_directions(model)
+    return np.ascontiguousarray(W[free]), np.ascontiguousarray(exempt[free]), PIN_WEIGHT
 
 
 def _stable_run(
     model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
 ) -> dict[str, Any]:
     """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
-    if not _check_stable(stable):
+    if not _check_flag(stable, "stable"):
         return run(None)
     from lpvid.trust.enforce import run_stable
 
@@ -262,6 +282,7 @@ def fit_l21(
     warn: bool = True,
     time_data: Any = None,
     stable: bool = False,
+    pinned: bool = False,
     **options: Any,
 ) -> L21Result:
     """Reweighted l2,1-regularised fit: Algorithm 1 of the paper (method.md section 4).
@@ -318,6 +339,18 @@ def fit_l21(
     stable : bool
         Keep every frozen model on the range stable (as in :func:`fit_nls`);
         the start must be stable.
+    pinned : bool
+        Keep the cone steps off the directions that are flat at the data:
+        with one scheduling point per coefficient matrix (``N = Nb + 1``),
+        a state transformation at one point alone leaves V_NLS unchanged
+        but moves the model between the points, and the l2,1 term can buy
+        smaller groups with such moves. A curvature (:data:`PIN_WEIGHT`
+        relative to the scaled quadratic, along those directions at the
+        start, the transformation common to all points left free) damps
+        them; the answer is still a stationary point of the objective, the
+        damping chooses which of the equally good fits is reached. No
+        effect at other numbers of points. :func:`lpvid.identify` uses it
+        when the warm path loses interpolation.
     **options
         Fields of :class:`lpvid.L21Settings` to change, e.g. ``eps=1e-4``,
         ``weights="scaled"``, ``max_outer=5``.
@@ -337,11 +370,14 @@ def fit_l21(
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
+    pin = _pinned(model, data, free, pinned)
     raw = _stable_run(
         model,
         stable,
         rng,
-        lambda check: _core.fit_l21(problem, model.theta, sup, free, s.to_core(g), monitor, check),
+        lambda check: _core.fit_l21(
+            problem, model.theta, sup, free, s.to_core(g), monitor, check, pin
+        ),
     )
     result = _l21_result(raw, model, floor, g, rng, s.threshold)
     if warn:
@@ -383,7 +419,7 @@ def l21_path(
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
-    if _check_stable(stable):
+    if _check_flag(stable, "stable"):
         from lpvid.trust.enforce import stable_path
 
         raws = stable_path(
