@@ -42,6 +42,9 @@ class PathEntry:
         iteration limit; :attr:`message` says so).
     message : str
         Why the fit stopped.
+    pinned : bool
+        Whether the fit kept its steps off the directions that are flat at
+        the data (``fit_l21(..., pinned=True)``, see :mod:`lpvid.pathfit`).
     """
 
     gamma: float
@@ -55,6 +58,7 @@ class PathEntry:
     seconds: float
     converged: bool = True
     message: str = ""
+    pinned: bool = False
 
 
 @dataclass
@@ -70,8 +74,8 @@ class IdentifyResult:
     reason : str
         Why it was chosen.
     entries : list of PathEntry
-        The unregularised model (gamma = 0) and every model of the l2,1
-        path, with V_NLS, groups kept and timings.
+        The unregularised model (gamma = 0) and the model kept at every
+        gamma of the l2,1 path, with V_NLS, groups kept and timings.
     initial : LpvModel
         The model the unregularised fit started from (for a SMILE start,
         the SMILE model with its coherent form in ``info["form"]``).
@@ -87,7 +91,8 @@ class IdentifyResult:
     nls : FitResult
         The unregularised fit.
     path : PathResult
-        The l2,1 path.
+        The l2,1 fits kept along the path (one per gamma; see
+        :mod:`lpvid.pathfit` for when a fit is pinned).
     data, validation : FrfData, FrfData or None
         The data used.
     time_data : TimeCost or None
@@ -158,6 +163,8 @@ class IdentifyResult:
             )
             if val and e.validation_vnls is not None and e.validation_floor:
                 line += f" {e.validation_vnls:11.5g} {e.validation_vnls / e.validation_floor:9.4f}"
+            if e.pinned:
+                line += "  (pinned)"
             if not e.converged:
                 line += "  (iteration limit)"
             lines.append(line)

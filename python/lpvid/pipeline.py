@@ -21,12 +21,13 @@ from lpvid.basis import Basis
 from lpvid.capacity import check_order
 from lpvid.data import FrfData
 from lpvid.errors import logger
-from lpvid.fit import fit_l21, fit_nls, raise_if_interrupted, warn_if_unconverged
+from lpvid.fit import fit_nls, raise_if_interrupted, warn_if_unconverged
 from lpvid.identified import IdentifyResult, PathEntry, path_entry
 from lpvid.initial.candidates import ROUTES, initial_candidates
 from lpvid.initial.choice import choose
 from lpvid.initial.local import identify_lti
 from lpvid.layout import strictly_proper
+from lpvid.pathfit import run_path
 from lpvid.results import PathResult
 from lpvid.settings import L21Settings
 from lpvid.timecost import check_time_data
@@ -152,7 +153,13 @@ def identify(
        points, the lowest validation V_NLS (identification V_NLS without
        validation data), the simpler on a near tie.
     3. The reweighted l2,1 path over ``gammas`` from the refined start
-       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first).
+       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first),
+       kept from trading away interpolation when the data leave directions
+       flat (one scheduling point per coefficient matrix): with
+       ``validation``, a fit that validates more than ``tolerance`` above
+       the best so far is also tried with its steps kept off the flat
+       directions (``fit_l21(..., pinned=True)``) and the better one kept;
+       without, every fit is pinned (see :mod:`lpvid.pathfit`).
     4. A choice among the unregularised model and the path: with
        ``validation`` data, the simplest model whose validation V_NLS is
        within ``tolerance`` of the best; without, the knee of the
@@ -290,25 +297,19 @@ def identify(
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
-    # The path of l21_path, run here one gamma at a time to report progress.
-    results = []
-    current = nls.model
-    entries = [path_entry(0.0, nls, data, validation, l21.threshold, time_cost)]
-    for g in sorted(gs, reverse=True):
-        r = raise_if_interrupted(
-            fit_l21(current, data, g, l21, fixed, warn=False, time_data=time_cost)
-        )
-        results.append(r)
-        current = r.model
-        kept = stable_fit(r, data, fixed, l21.threshold, p_range, time_cost) if stable else r
-        entries.append(path_entry(r.gamma, kept, data, validation, l21.threshold, time_cost))
-        warn_if_unconverged(r, f"the l2,1 fit at gamma = {r.gamma:g}", stacklevel=2)
-        _say(
-            progress,
-            f"  gamma = {r.gamma:g}: {r.n_groups} groups, V_NLS/floor "
-            f"{r.vnls / r.noise_floor:.3f}, {r.n_iter} cone steps"
-            + ("" if r.converged else f" ({r.message})"),
-        )
+    results, entries = run_path(
+        nls,
+        sorted(gs, reverse=True),
+        data,
+        validation=validation,
+        tolerance=tol,
+        settings=l21,
+        fixed=fixed,
+        p_range=p_range,
+        stable=stable,
+        time_cost=time_cost,
+        say=lambda message: _say(progress, message),
+    )
     path = PathResult(results)
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)

@@ -45,6 +45,7 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
                 "validation_vnls": p.validation_vnls,
                 "seconds": p.seconds,
                 "converged": p.converged,
+                "pinned": p.pinned,
             }
             for p in result.entries
         ],
@@ -283,6 +284,17 @@ def _markdown(
         result.table(),
         "```",
         "",
+        *(
+            [
+                "(pinned): the fit kept its steps off the directions that are flat at "
+                "the data (state transformations at one scheduling point alone), because "
+                "the warm fit lost interpolation or there were no validation data "
+                "(`lpvid.pathfit`).",
+                "",
+            ]
+            if any(e.pinned for e in result.entries)
+            else []
+        ),
         "### Group magnitudes of the SMILE model (left: ||theta_X(i)||, right: relative)",
         "",
         "```",
