@@ -16,6 +16,7 @@ import pytest
 import lpvid
 from lpvid.pathfit import path_mode
 from lpvid.testing import noisy_data, random_lpv
+from lpvid.timecost import check_time_data
 
 MAKERS = {"stage": lpvid.datasets.positioning_stage, "gantry": lpvid.datasets.gantry}
 
@@ -80,6 +81,10 @@ def test_the_path_is_plain_warm_where_nothing_is_flat(rng):
     assert path_mode(model, exact, exact, None) == "guarded"
     assert path_mode(model, more, None, None) == "warm"
     assert path_mode(model, more, more, None) == "warm"
+    # Time records along a moving p see the model between the points.
+    u, p = rng.normal(size=300), rng.uniform(size=300)
+    record = lpvid.TimeData(u, p, model.simulate(u, p), dt=model.Ts, sigma=0.01)
+    assert path_mode(model, exact, None, check_time_data(exact, record)) == "warm"
 
 
 def test_pinning_changes_nothing_where_nothing_is_flat(rng):
