@@ -13,6 +13,7 @@ Each rung runs in a fresh process (peak memory is per rung). The machines
 are shared and noisy: compare medians over --repeat runs.
 
 Run: python benches/bench_scale.py [--rungs gantry n10 ...] [--repeat 3] [--json out.json]
+[--cone-tol 1e-6]
 """
 
 from __future__ import annotations
@@ -127,13 +128,14 @@ def problem(name: str):
     return data, validation, rung.n, basis, rung.note
 
 
-def run_one(name: str) -> dict:
+def run_one(name: str, cone_tol: float | None = None) -> dict:
     """One identify() of a rung, with its figures (in this process)."""
     data, validation, n, basis, note = problem(name)
+    settings = None if cone_tol is None else lpvid.L21Settings(max_outer=10, cone_tol=cone_tol)
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = lpvid.identify(data, n, basis, validation=validation)
+        result = lpvid.identify(data, n, basis, validation=validation, settings=settings)
     total = time.perf_counter() - t0
     lm = [row for c in result.candidates if c.fit for row in c.fit.history]
     socp = [row for r in result.path for row in r.history]
@@ -150,6 +152,7 @@ def run_one(name: str) -> dict:
         "cone_step_s": statistics.mean(r["seconds"] for r in socp) if socp else float("nan"),
         "ip_iterations": statistics.mean(r["solver_iterations"] for r in socp) if socp else 0,
         "steps_per_gamma": [r.n_iter for r in result.path],
+        "pinned": sum(e.pinned for e in result.entries),
         "vnls_ratio": e.vnls / e.noise_floor,
         "validation_ratio": e.validation_vnls / e.validation_floor,
         "groups": e.n_groups,
@@ -181,6 +184,7 @@ def report(runs: list[dict]) -> None:
         f"LM: {first['lm_steps']} steps in the starts, {1e3 * med['lm_iter_s']:.1f} ms each; "
         f"cone: {first['cone_steps']} steps {first['steps_per_gamma']}, "
         f"{1e3 * med['cone_step_s']:.1f} ms each, {med['ip_iterations']:.1f} IP iterations"
+        + (f"; {first['pinned']} kept fit(s) pinned" if first.get("pinned") else "")
     )
     print(
         f"chosen: gamma {first['chosen_gamma']:g} from {first['start']}, {first['groups']} groups "
@@ -197,17 +201,21 @@ def main() -> None:
     parser.add_argument("--rungs", nargs="+", default=list(RUNGS), choices=list(RUNGS))
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--json", help="write every run's figures to this file")
+    parser.add_argument(
+        "--cone-tol", type=float, help="L21Settings.cone_tol of the path (default its default)"
+    )
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(run_one(args.one)))
+        print(json.dumps(run_one(args.one, args.cone_tol)))
         return
     everything = {}
     for name in args.rungs:
         runs = []
         for _ in range(args.repeat):
             out = subprocess.run(
-                [sys.executable, __file__, "--one", name],
+                [sys.executable, __file__, "--one", name]
+                + ([] if args.cone_tol is None else ["--cone-tol", str(args.cone_tol)]),
                 capture_output=True,
                 text=True,
                 check=True,
