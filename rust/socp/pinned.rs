@@ -11,8 +11,7 @@
 //! exempt directions) change nothing anywhere, so the steps stay free along
 //! them.
 
-use faer::Mat;
-use nalgebra::DMatrix;
+use faer::{Mat, MatRef};
 
 /// Singular values below this fraction of the largest are dropped when the
 /// directions are made orthonormal.
@@ -44,23 +43,19 @@ pub struct PinnedBasis {
 /// values up to `RANK_TOL` times `reference` (or the largest, if larger)
 /// dropped: a caller that projected `m` passes its size before, so that
 /// what the projection left as rounding is not taken for a direction.
-fn orthonormal(m: &DMatrix<f64>, reference: f64) -> DMatrix<f64> {
+/// `None` when the SVD fails.
+fn orthonormal(m: MatRef<'_, f64>, reference: f64) -> Option<Mat<f64>> {
     if m.ncols() == 0 || m.nrows() == 0 {
-        return DMatrix::zeros(m.nrows(), 0);
+        return Some(Mat::zeros(m.nrows(), 0));
     }
-    let svd = m.clone().svd(true, false);
-    let top = svd
-        .singular_values
-        .iter()
-        .cloned()
-        .fold(reference, f64::max);
-    let keep: Vec<usize> = (0..svd.singular_values.len())
-        .filter(|&k| top > 0.0 && svd.singular_values[k] > RANK_TOL * top)
+    let svd = m.thin_svd().ok()?;
+    let s = svd.S().column_vector();
+    let top = (0..s.nrows()).map(|k| s[k]).fold(reference, f64::max);
+    let keep: Vec<usize> = (0..s.nrows())
+        .filter(|&k| top > 0.0 && s[k] > RANK_TOL * top)
         .collect();
-    match svd.u {
-        Some(u) => DMatrix::from_fn(m.nrows(), keep.len(), |i, c| u[(i, keep[c])]),
-        None => DMatrix::zeros(m.nrows(), 0),
-    }
+    let u = svd.U();
+    Some(Mat::from_fn(m.nrows(), keep.len(), |i, c| u[(i, keep[c])]))
 }
 
 impl Pinned {
@@ -76,15 +71,15 @@ impl Pinned {
         {
             return None;
         }
-        let scaled = |m: &Mat<f64>| DMatrix::from_fn(nf, m.ncols(), |i, c| m[(i, c)] / scale0[i]);
-        let g = orthonormal(&scaled(&self.exempt), 0.0);
+        let scaled = |m: &Mat<f64>| Mat::from_fn(nf, m.ncols(), |i, c| m[(i, c)] / scale0[i]);
+        let g = orthonormal(scaled(&self.exempt).as_ref(), 0.0)?;
         let mut w = scaled(&self.dirs);
-        let before = w.norm();
+        let before = w.norm_l2();
         if g.ncols() > 0 {
             let proj = &g * (g.transpose() * &w);
             w -= proj;
         }
-        let v = orthonormal(&w, before);
+        let v = orthonormal(w.as_ref(), before)?;
         if v.ncols() == 0 {
             return None;
         }
