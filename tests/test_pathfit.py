@@ -130,3 +130,16 @@ def test_the_report_says_which_fits_were_pinned(run, tmp_path):
     assert [r["pinned"] for r in rows] == [e.pinned for e in res.entries]
     said = "(pinned): the fit kept its steps off" in report.read_text()
     assert said == any(e.pinned for e in res.entries)
+
+
+def test_a_pinned_sweep_is_the_chain_of_pinned_fits(rng):
+    model = random_lpv(rng, n=2, r=1, l=1, nb=2)
+    data = _data(model, [0.1, 0.5, 0.9], rng)
+    path = lpvid.l21_path(model, data, [0.01, 0.1], warn=False, pinned=True)
+    first = lpvid.fit_l21(model, data, 0.1, warn=False, pinned=True)
+    second = lpvid.fit_l21(first.model, data, 0.01, warn=False, pinned=True)
+    assert [r.gamma for r in path.results] == [0.1, 0.01]
+    np.testing.assert_array_equal(path.results[0].model.theta, first.model.theta)
+    np.testing.assert_array_equal(path.results[1].model.theta, second.model.theta)
+    free = lpvid.l21_path(model, data, [0.1], warn=False)
+    assert not np.array_equal(free.results[0].model.theta, first.model.theta)

@@ -385,6 +385,25 @@ def fit_l21(
     return result
 
 
+def _sweep(
+    model: LpvModel, gammas: Any, fit_one: Callable[[LpvModel, float], dict[str, Any]]
+) -> list[tuple[float, dict[str, Any]]]:
+    """A warm-started gamma path, largest gamma first, one ``fit_one(start, gamma)`` each.
+
+    ``fit_one`` returns the core's result dict; the sweep stops after a fit
+    that Ctrl-C interrupted (as the core's ``l21_path`` does).
+    """
+    out = []
+    current = model
+    for g in sorted((float(x) for x in gammas), reverse=True):
+        raw = fit_one(current, g)
+        out.append((g, raw))
+        current = current.with_theta(raw["theta"])
+        if raw["interrupted"]:
+            break
+    return out
+
+
 def l21_path(
     model: LpvModel,
     data: FrfData,
@@ -397,6 +416,7 @@ def l21_path(
     warn: bool = True,
     time_data: Any = None,
     stable: bool = False,
+    pinned: bool = False,
     **options: Any,
 ) -> PathResult:
     """A warm-started sweep of :func:`fit_l21` from the largest gamma to the smallest.
@@ -405,7 +425,9 @@ def l21_path(
     paper; the weights are recomputed at each start. Arguments (including
     ``time_data``) as in :func:`fit_l21`; Ctrl-C stops the sweep and returns
     the fits so far (the last one interrupted). With ``stable=True`` every fit
-    keeps the frozen models on the range stable.
+    keeps the frozen models on the range stable; with ``pinned=True`` every
+    fit keeps its steps off the directions that are flat at the data
+    (those of its own start, see :func:`fit_l21`).
 
     Returns
     -------
@@ -419,17 +441,18 @@ def l21_path(
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
-    if _check_flag(stable, "stable"):
-        from lpvid.trust.enforce import stable_path
+    pin = _check_flag(pinned, "pinned")
 
-        raws = stable_path(
-            model,
-            rng,
-            gs,
-            lambda m, g, check: _core.fit_l21(
-                problem, m.theta, sup, free, s.to_core(g), monitor, check
-            ),
-        )
+    def one(m: LpvModel, g: float, check: Any = None) -> dict[str, Any]:
+        flat = _pinned(m, data, free, pin)
+        return _core.fit_l21(problem, m.theta, sup, free, s.to_core(g), monitor, check, flat)
+
+    if _check_flag(stable, "stable"):
+        from lpvid.trust.enforce import run_stable
+
+        raws = _sweep(model, gs, lambda m, g: run_stable(m, rng, lambda c: one(m, g, c)))
+    elif pin:
+        raws = _sweep(model, gs, one)
     else:
         raws = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
     results = [_l21_result(raw, model, floor, g, rng, s.threshold) for g, raw in raws]

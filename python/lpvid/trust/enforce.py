@@ -29,7 +29,7 @@ from lpvid.model import LpvModel
 from lpvid.trust.ranges import as_convention, box_grid, check_range
 from lpvid.trust.stability import format_p, stability
 
-__all__ = ["STABLE_TOL", "check_points", "run_stable", "stabilised", "stable_path"]
+__all__ = ["STABLE_TOL", "check_points", "run_stable", "stabilised"]
 
 #: Smallest stability margin a fit with ``stable=True`` accepts at its check
 #: points (the margins of :func:`lpvid.frozen.stability_margin`).
@@ -152,25 +152,3 @@ def run_stable(
         f"stable=True: after {MAX_ROUNDS} rounds the fit still leaves the stable set between "
         f"the check points (at p = {format_p(extra[-1])}); this should not happen, please report it"
     )
-
-
-def stable_path(
-    model: LpvModel,
-    p_range: Any,
-    gammas: Any,
-    fit_one: Callable[[LpvModel, float, Any], dict[str, Any]],
-) -> list[tuple[float, dict[str, Any]]]:
-    """A warm-started gamma path, largest gamma first, every fit through :func:`run_stable`.
-
-    ``fit_one(start, gamma, check_points)`` runs one l2,1 fit and returns the
-    core's result dict; the sweep stops after a fit that Ctrl-C interrupted.
-    """
-    out = []
-    current = model
-    for g in sorted((float(x) for x in gammas), reverse=True):
-        raw = run_stable(current, p_range, lambda check, m=current, g=g: fit_one(m, g, check))
-        out.append((g, raw))
-        current = current.with_theta(raw["theta"])
-        if raw["interrupted"]:
-            break
-    return out
