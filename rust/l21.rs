@@ -13,7 +13,7 @@ use crate::fit::{
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::objective::Objective;
-use crate::socp::{ConeGroup, ConeProblem, ConeSolver, Pinned, DEFAULT_CONE_TOL};
+use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Pinned, DEFAULT_CONE_TOL};
 use std::time::Instant;
 
 /// The reweighting rule (method.md (21)-(23)).
@@ -260,18 +260,8 @@ pub fn fit_l21(
     let mut cone_solver = ConeSolver::new(settings.cone_tol);
     // The kept-off directions, made orthonormal once in the metric of the
     // first step.
-    let pinned = pinned.and_then(|p| {
-        let first = ConeProblem {
-            gn: &gn,
-            diag: &diag,
-            theta: &theta,
-            groups: &groups,
-            gamma: settings.gamma,
-            n_residuals: m_res,
-            pinned: None,
-        };
-        p.basis(&first.jacobi_scale(Damping::new(settings.lambda0).mu))
-    });
+    let mu0 = Damping::new(settings.lambda0).mu;
+    let pinned = pinned.and_then(|p| p.basis(&jacobi_scale(&gn, &diag, mu0, m_res)));
     'outer: while outer < settings.max_outer {
         groups = weigh(&specs, &theta, settings);
         let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();

@@ -121,15 +121,9 @@ impl ConeProblem<'_> {
         out
     }
 
-    /// Jacobi scaling: `P = S (2/M)(H + mu D) S` has a unit diagonal.
-    pub fn jacobi_scale(&self, mu: f64) -> Vec<f64> {
-        let nf = self.gn.dim();
-        (0..nf)
-            .map(|i| {
-                1.0 / (2.0 / self.n_residuals * (self.gn.gram[i + i * nf] + mu * self.diag[i]))
-                    .sqrt()
-            })
-            .collect()
+    /// Jacobi scaling of the step (see [`jacobi_scale`]).
+    fn jacobi_scale(&self, mu: f64) -> Vec<f64> {
+        jacobi_scale(self.gn, self.diag, mu, self.n_residuals)
     }
 
     /// The largest gradient a group at zero may have: `gamma phi varphi`.
@@ -422,6 +416,15 @@ impl ConeProblem<'_> {
         q.extend(open.iter().map(|g| self.gamma * g.phi));
         Program { p, q, a, b, cones }
     }
+}
+
+/// Jacobi scaling of a step with damping `mu`: `P = S (2/M)(J^T J + mu D) S`
+/// has a unit diagonal (`M` = `n_residuals`).
+pub fn jacobi_scale(gn: &GaussNewton, diag: &[f64], mu: f64, n_residuals: f64) -> Vec<f64> {
+    let nf = gn.dim();
+    (0..nf)
+        .map(|i| 1.0 / (2.0 / n_residuals * (gn.gram[i + i * nf] + mu * diag[i])).sqrt())
+        .collect()
 }
 
 /// One solve of the program with a given set of groups at zero.
