@@ -6,7 +6,11 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.similarity import pointwise_similarity_directions, similarity_directions
+from lpvid.similarity import (
+    flat_at_points,
+    pointwise_similarity_directions,
+    similarity_directions,
+)
 from lpvid.testing import random_lpv
 
 FREQS = np.linspace(1.0, 40.0, 30)
@@ -22,7 +26,7 @@ def test_flat_at_the_points_and_not_between(rng):
     model = random_lpv(rng, n=3, r=2, l=2, nb=2)
     p = np.array([0.1, 0.5, 0.9])
     W = pointwise_similarity_directions(model, p)
-    assert W.shape == (model.theta.size, 3 * 9)
+    assert W.shape == (model.theta.size, 3 * 9) and flat_at_points(model, p)
     between = np.array([0.3, 0.7])
     for k in (0, 13, 26):
         d = W[:, k] / np.linalg.norm(W[:, k])
@@ -47,3 +51,4 @@ def test_the_sum_over_the_points_is_the_common_transformation(rng):
 def test_none_without_exactly_one_point_per_coefficient(rng, p):
     model = random_lpv(rng, n=2, r=1, l=1, nb=2)
     assert pointwise_similarity_directions(model, np.array(p)).shape == (model.theta.size, 0)
+    assert not flat_at_points(model, np.array(p))

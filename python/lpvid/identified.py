@@ -213,6 +213,7 @@ def path_entry(
     validation: FrfData | None,
     threshold: float,
     time_cost: TimeCost | None = None,
+    pinned: bool = False,
 ) -> PathEntry:
     """The entry of ``fit`` (at ``gamma``) for the table of :func:`lpvid.identify`."""
     model = fit.model
@@ -230,4 +231,5 @@ def path_entry(
         seconds=float(fit.timings["total_s"]),
         converged=fit.converged,
         message=fit.message,
+        pinned=pinned,
     )

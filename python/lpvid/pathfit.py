@@ -33,7 +33,7 @@ from lpvid.identified import PathEntry, path_entry
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result
 from lpvid.settings import L21Settings
-from lpvid.similarity import pointwise_similarity_directions
+from lpvid.similarity import flat_at_points
 from lpvid.timecost import TimeCost
 from lpvid.trust.steps import stable_fit
 
@@ -48,7 +48,7 @@ def path_mode(
     ``"warm"`` (nothing flat at the data), ``"guarded"`` (warm, pinned where
     the warm fit loses interpolation) or ``"pinned"`` (no validation data).
     """
-    if time_cost is not None or pointwise_similarity_directions(model, data.p).shape[1] == 0:
+    if time_cost is not None or not flat_at_points(model, data.p):
         return "warm"
     return "pinned" if validation is None else "guarded"
 
@@ -83,9 +83,7 @@ def run_path(
         )
         r = raise_if_interrupted(fit)
         kept = stable_fit(r, data, fixed, threshold, p_range, time_cost) if stable else r
-        e = path_entry(r.gamma, kept, data, validation, threshold, time_cost)
-        e.pinned = pinned
-        return r, e
+        return r, path_entry(r.gamma, kept, data, validation, threshold, time_cost, pinned)
 
     entries = [path_entry(0.0, nls, data, validation, threshold, time_cost)]
     results: list[L21Result] = []

@@ -30,6 +30,7 @@ __all__ = [
     "similarity_directions",
     "free_similarity_directions",
     "pointwise_similarity_directions",
+    "flat_at_points",
 ]
 
 
@@ -64,6 +65,29 @@ def _directions(
     return out
 
 
+def _point_weights(model: LpvModel, p: ArrayLike) -> NDArray[np.float64] | None:
+    """``inv([1, psi(p)])`` when the points determine the coefficients, else None.
+
+    Column ``k`` holds the coefficients of a change of the frozen model at
+    point ``k`` alone; there is one only with ``N = Nb + 1`` well-placed points.
+    """
+    psi = model.basis_values(p)
+    Psi = np.hstack([np.ones((psi.shape[0], 1)), psi])
+    if Psi.shape[0] != Psi.shape[1] or np.linalg.cond(Psi) > 1e12:
+        return None
+    return np.linalg.inv(Psi)
+
+
+def flat_at_points(model: LpvModel, p: ArrayLike) -> bool:
+    """Whether :func:`pointwise_similarity_directions` has any direction at ``p``.
+
+    True when the ``N`` scheduling points determine the ``Nb + 1``
+    coefficient matrices (``N = Nb + 1``, the points apart); the directions
+    themselves are not computed.
+    """
+    return _point_weights(model, p) is not None
+
+
 def pointwise_similarity_directions(model: LpvModel, p: ArrayLike) -> NDArray[np.float64]:
     """The theta-directions of state transformations applied at one scheduling point alone.
 
@@ -88,15 +112,12 @@ def pointwise_similarity_directions(model: LpvModel, p: ArrayLike) -> NDArray[np
         columns when ``N`` differs from ``Nb + 1`` or the points do not
         determine the coefficients (then no such direction is flat).
     """
-    psi = model.basis_values(p)
-    Psi = np.hstack([np.ones((psi.shape[0], 1)), psi])
-    empty = np.zeros((model.theta.size, 0))
-    if Psi.shape[0] != Psi.shape[1] or np.linalg.cond(Psi) > 1e12:
-        return empty
-    weights = np.linalg.inv(Psi)  # column k: the coefficients of a change at point k alone
-    pts = np.asarray(p, dtype=float).reshape(Psi.shape[0], -1)
+    weights = _point_weights(model, p)
+    if weights is None:
+        return np.zeros((model.theta.size, 0))
+    pts = np.asarray(p, dtype=float).reshape(weights.shape[0], -1)
     cols = []
-    for k in range(Psi.shape[0]):
+    for k in range(weights.shape[0]):
         w = weights[:, k, None, None]
         frozen = model.at(pts[k] if pts.shape[1] > 1 else pts[k, 0])
         cols.append(_directions(*(w * x[None] for x in frozen)))
