@@ -13,7 +13,9 @@ use crate::fit::{
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::objective::Objective;
-use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Pinned, DEFAULT_CONE_TOL};
+use crate::socp::{
+    jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned, DEFAULT_CONE_TOL,
+};
 use std::time::Instant;
 
 /// The reweighting rule (method.md (21)-(23)).
@@ -257,13 +259,14 @@ pub fn fit_l21(
     let mut stop = Stop::MaxIterations;
     let mut groups = weigh(&specs, &theta, settings);
     let mut outer = 0;
-    let mut cone_solver = ConeSolver::new(settings.cone_tol);
+    let mut solver = Lookahead::new(settings.cone_tol);
     // The kept-off directions, made orthonormal once in the metric of the
     // first step.
     let mu0 = Damping::new(settings.lambda0).mu;
     let pinned = pinned.and_then(|p| p.basis(&jacobi_scale(&gn, &diag, mu0, m_res)));
     'outer: while outer < settings.max_outer {
         groups = weigh(&specs, &theta, settings);
+        solver.forget();
         let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();
         if let Some(prev) = &prev_phi {
             let change = phi
@@ -297,6 +300,9 @@ pub fn fit_l21(
         // over was measured: fewer rejected steps, but other models on the
         // gantry path, one more group at gamma = 0.03).
         let mut damping = Damping::new(settings.lambda0);
+        // Doubtful: a reweighting's first step, or one after a rejection;
+        // only then is the step a rejection would ask for solved ahead.
+        let mut doubtful = true;
         if free.is_empty() {
             stop = Stop::NothingFree;
             break;
@@ -314,7 +320,10 @@ pub fn fit_l21(
             };
             let objective = gn.vnls / m_res + cone.penalty(None);
             let lambda = damping.lambda();
-            let solved = cone.solve(damping.mu, &mut cone_solver);
+            let mut rejected = damping;
+            rejected.update(-1.0);
+            let next_mu = (doubtful && !rejected.exhausted()).then_some(rejected.mu);
+            let solved = solver.solve(&cone, damping.mu, next_mu);
             let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
             let mut new_theta = None;
             let mut new_objective = objective;
@@ -337,8 +346,10 @@ pub fn fit_l21(
                 }
             }
             damping.update(if accepted { rho } else { -1.0 });
+            doubtful = !accepted;
             let theta_norm = norm(&free.gather(&theta));
             if let Some((trial, cand)) = new_theta {
+                solver.forget();
                 gn = cand;
                 diag = marquardt_diagonal(&gn);
                 theta = trial;

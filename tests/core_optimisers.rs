@@ -367,3 +367,47 @@ fn fit_l21_drops_exactly_the_zero_groups() {
         levenberg_marquardt(&p, &theta, &free, &LmSettings::default(), &mut Silent).unwrap();
     assert!(refit.vnls < 1e-16, "V_NLS = {}", refit.vnls);
 }
+
+#[test]
+fn fit_l21_takes_the_same_steps_whether_doubtful_steps_are_solved_ahead_or_not() {
+    // With two threads, the step a rejection would ask for is solved beside
+    // each doubtful step (the first of a reweighting, or one after a
+    // rejection: `socp::Lookahead`); with one thread, nothing is.
+    let (p, truth) = problem(1.0);
+    let start = perturbed(&truth, 0.3, 7);
+    let free = FreeSet::all(truth.len());
+    // A small initial damping: the first step of a reweighting is bold.
+    let settings = L21Settings {
+        gamma: 1e-2,
+        lambda0: 1e-3,
+        ..L21Settings::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| fit_l21(&p, &start, &free, &[1.0, 1.0], &settings, None, &mut Silent))
+            .unwrap()
+    };
+    let (one, two) = (run(1), run(2));
+    // Rejected doubtful steps: their successors were solved ahead.
+    let h = &one.history;
+    let used = (0..h.len())
+        .filter(|&i| {
+            !h[i].accepted && (i == 0 || h[i - 1].outer != h[i].outer || !h[i - 1].accepted)
+        })
+        .count();
+    assert!(
+        used > 0,
+        "no doubtful step was rejected: nothing was solved ahead"
+    );
+    assert_eq!(one.history.len(), two.history.len());
+    for (a, b) in one.history.iter().zip(&two.history) {
+        assert_eq!(
+            (a.accepted, a.solver_iterations, a.objective.to_bits()),
+            (b.accepted, b.solver_iterations, b.objective.to_bits())
+        );
+    }
+    assert_eq!(one.theta, two.theta);
+}

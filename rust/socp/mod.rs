@@ -24,10 +24,12 @@
 //! solve is needed at all. Groups that the solver leaves at a negligible
 //! size are set exactly to zero, so that the next step can fix them.
 
+mod ahead;
 mod group;
 mod pinned;
 mod program;
 
+pub use ahead::Lookahead;
 pub use group::ConeGroup;
 pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
