@@ -1,7 +1,7 @@
-//! Small dense helpers on faer, single-threaded: the matrices of one step
-//! are a few hundred wide, where thread start-up costs more than it saves.
-//! The Cholesky factorisation of wider ones (the Levenberg-Marquardt step
-//! at n = 16 and more) uses the whole thread pool.
+//! Small dense helpers on faer. Single-threaded where the matrices are a
+//! few hundred wide (thread start-up costs more than it saves); kernels of
+//! more work ([`par_for`]: the Levenberg-Marquardt step and the cone step's
+//! Schur complement at n = 16 and more) use the whole thread pool.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
@@ -10,24 +10,27 @@ use faer::linalg::triangular_solve::{
 };
 use faer::{Mat, MatMut, Par};
 
-/// Width from which [`cholesky`] uses every thread of the pool. Measured on
-/// two cores: 1.4x at 900-1700 (the LM step at n = 16 2x2 is 1620 wide),
-/// 1.5x at 2900, no gain at 600. The factor is the same to the last bit.
-const PARALLEL_FROM: usize = 800;
+/// Work (in flops) from which a dense kernel here uses every thread of the
+/// pool. Measured on two cores: the Cholesky factorisation 1.4x at 900-1700
+/// wide (the LM step at n = 16 2x2 is 1620 wide), 1.5x at 2900, no gain at
+/// 600; the Schur complement of a cone step (`W^T W`, 324 x 1296 at n = 16)
+/// 1.6x, at n = 24 2.2x. The results are the same to the last bit.
+const PARALLEL_FLOPS: f64 = 1.5e8;
 
-/// Lower Cholesky factor `L` of a symmetric positive definite matrix
-/// (`A = L L^T`), or `None` when `A` is not numerically positive definite.
-pub fn cholesky(a: Mat<f64>) -> Option<Mat<f64>> {
-    let par = if a.nrows() >= PARALLEL_FROM {
+/// The parallelism for a kernel of `flops` floating-point operations.
+pub fn par_for(flops: f64) -> Par {
+    if flops >= PARALLEL_FLOPS {
         Par::rayon(0)
     } else {
         Par::Seq
-    };
-    cholesky_with(a, par)
+    }
 }
 
-fn cholesky_with(mut a: Mat<f64>, par: Par) -> Option<Mat<f64>> {
+/// Lower Cholesky factor `L` of a symmetric positive definite matrix
+/// (`A = L L^T`), or `None` when `A` is not numerically positive definite.
+pub fn cholesky(mut a: Mat<f64>) -> Option<Mat<f64>> {
     let n = a.nrows();
+    let par = par_for((n * n * n) as f64 / 3.0);
     let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, par, Default::default()));
     let stack = MemStack::new(&mut mem);
     cholesky_in_place(
@@ -54,7 +57,8 @@ pub fn cholesky_solve(l: &Mat<f64>, mut b: MatMut<'_, f64>) {
 
 /// Solve `L x = b` in place.
 pub fn lower_solve(l: &Mat<f64>, b: MatMut<'_, f64>) {
-    solve_lower_triangular_in_place(l.as_ref(), b, Par::Seq);
+    let par = par_for((l.nrows() * l.nrows() * b.ncols()) as f64);
+    solve_lower_triangular_in_place(l.as_ref(), b, par);
 }
 
 /// Solve `L^T x = b` in place.
@@ -88,7 +92,7 @@ mod tests {
 
     #[test]
     fn a_wide_factor_is_the_same_to_the_last_bit_on_one_thread_and_two() {
-        let n = PARALLEL_FROM + 100;
+        let n = 900;
         let mut rng = crate::testing::Lcg(3);
         let b = Mat::from_fn(n, n + 10, |_, _| rng.next_f64());
         let a = &b * b.transpose();

@@ -34,11 +34,11 @@ pub use group::ConeGroup;
 pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
 
-use crate::dense::{cholesky, lower_solve, lower_transpose_solve};
+use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for};
 use crate::objective::GaussNewton;
 use clarabel::solver::SolverStatus;
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, Par};
+use faer::{Accum, Mat};
 use program::{Cone, Csc, Program};
 
 /// A group whose relative magnitude `varphi ||theta_g + d_g||` ends below
@@ -299,7 +299,7 @@ impl ConeProblem<'_> {
                     w.transpose(),
                     &w,
                     -1.0,
-                    Par::Seq,
+                    par_for(2.0 * (nk * nk * nu) as f64),
                 );
                 let wtv = w.transpose() * &v;
                 q_red
