@@ -3,26 +3,22 @@
 //! (method.md (7)), its gradient and the Gauss-Newton matrix `J^T J` from the
 //! analytic Jacobian without forming the full Jacobian (method.md section 3):
 //! per point `q` the Gram matrix `H_q = J_q^T J_q` of the frozen LTI model is
-//! accumulated, and `J^T J = sum_q (psi_q psi_q^T) kron H_q`.
+//! accumulated from the Kronecker structure of its rows ([`crate::kron_gram`]),
+//! and `J^T J = sum_q (psi_q psi_q^T) kron H_q`.
 
 use crate::data::FrfData;
 use crate::error::{invalid, Error, Result};
+use crate::kron_gram::{GramParts, KronGram};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use crate::objective::{GaussNewton, Objective};
 use crate::response::with_constant;
-use faer::linalg::matmul::matmul;
-use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
-use faer::{Accum, Mat, MatRef, Par};
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
 
-/// Real Jacobian columns per task (the unit of parallel work).
+/// Real residuals per task (the unit of parallel work).
 const TASK_COLUMNS: usize = 1024;
-/// Real Jacobian columns per Gram update: large enough for an efficient
-/// matrix product, small enough to stay in cache.
-const BLOCK_COLUMNS: usize = 256;
 
 /// Shape, data and basis values of one identification problem.
 #[derive(Debug, Clone)]
@@ -138,33 +134,22 @@ impl Problem {
                 |ws, (task, slice)| self.task_gram(&forms[task.point], task, slice, ws),
             )
             .collect::<Result<Vec<_>>>()?;
-        // Fold the tasks' lower triangles into one symmetric Gram matrix per
-        // point, the points in parallel (each sums its tasks in task order).
+        // Sum the tasks of every point and unfold its Gram matrix, the
+        // points in parallel (each sums its tasks in task order).
         let n_points = self.data.n_points();
-        let mut by_point: Vec<Vec<TaskGram>> = (0..n_points).map(|_| Vec::new()).collect();
+        let mut by_point: Vec<Vec<GramParts>> = (0..n_points).map(|_| Vec::new()).collect();
         for part in parts {
-            by_point[part.point].push(part);
+            by_point[part.point].push(part.parts);
         }
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = by_point
             .into_par_iter()
             .map(|tasks| {
-                let mut h = vec![0.0; lti * lti];
-                let mut b = vec![0.0; lti];
-                for part in &tasks {
-                    for j in 0..lti {
-                        let col = part.gram.col(j);
-                        for i in j..lti {
-                            h[i + j * lti] += col[i];
-                        }
-                    }
-                    b.iter_mut().zip(&part.jtr).for_each(|(x, y)| *x += y);
-                }
-                for j in 0..lti {
-                    for i in j + 1..lti {
-                        h[j + i * lti] = h[i + j * lti];
-                    }
-                }
-                (h, b)
+                let mut tasks = tasks.into_iter();
+                let Some(mut sum) = tasks.next() else {
+                    return (vec![0.0; lti * lti], vec![0.0; lti]);
+                };
+                tasks.for_each(|t| sum.merge(&t));
+                (sum.gram(&self.shape), sum.jtr)
             })
             .unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
@@ -240,12 +225,7 @@ impl Problem {
         }
     }
 
-    /// The Gram matrix (lower triangle) and `J^T r` of one task's Jacobian rows.
-    ///
-    /// The Jacobian is built block by block in row-major `lti x cols` form
-    /// with the [`LANES`] frequencies of a batch side by side in each row, so
-    /// that every lane operation writes contiguous memory; the order of the
-    /// columns does not matter to `J^T J`.
+    /// The Gram pieces and `J^T r` of one task's lines (see [`crate::kron_gram`]).
     fn task_gram(
         &self,
         form: &Hessenberg,
@@ -253,96 +233,31 @@ impl Problem {
         slice: &mut [C64],
         ws: &mut Workspace,
     ) -> Result<TaskGram> {
-        let Shape { n, r, l, .. } = self.shape;
-        let lti = self.shape.lti_len();
-        let (na, nb, nc) = (n * n, n * r, l * n);
-        let lr = l * r;
+        let lr = self.shape.l * self.shape.r;
         let q = task.point;
-        let batch_cols = 2 * lr * LANES;
-        let batches_per_block = (BLOCK_COLUMNS / batch_cols).max(1);
-        let mut gram = Mat::<f64>::zeros(lti, lti);
-        let mut jtr = vec![0.0; lti];
-        let batches: Vec<usize> = (task.first..task.end).step_by(LANES).collect();
-        for block in batches.chunks(batches_per_block) {
-            let cols = block.len() * batch_cols;
-            ws.jt.resize(lti * cols, 0.0);
-            ws.rr.resize(cols, 0.0);
-            let jt = &mut ws.jt[..lti * cols];
-            // The A rows are written in full below; B, C and D are sparse.
-            jt[na * cols..].iter_mut().for_each(|v| *v = 0.0);
-            for (bi, &first) in block.iter().enumerate() {
-                let end = (first + LANES).min(task.end);
-                self.batch(form, &mut ws.resolvent, q, (first, end), true)?;
-                self.write_residual(&ws.resolvent, task, (first, end), slice);
-                let res = &ws.resolvent;
-                for j in 0..l {
-                    let y = &res.yt[j * n..(j + 1) * n];
-                    for c in 0..r {
-                        let e = j * r + c;
-                        let mut w = [0.0; LANES];
-                        let mut err = Cx::default();
-                        for (lane, k) in (first..end).enumerate() {
-                            w[lane] = self.data.weight()[self.data.offset(q, k) + e];
-                            let v = slice[(k - task.first) * lr + e];
-                            err.re[lane] = v.re;
-                            err.im[lane] = v.im;
-                        }
-                        let base = (bi * lr + e) * 2 * LANES;
-                        ws.rr[base..base + LANES].copy_from_slice(&err.re);
-                        ws.rr[base + LANES..base + 2 * LANES].copy_from_slice(&err.im);
-                        let put = |jt: &mut [f64], row: usize, v: Cx| {
-                            let at = row * cols + base;
-                            jt[at..at + LANES].copy_from_slice(&v.re);
-                            jt[at + LANES..at + 2 * LANES].copy_from_slice(&v.im);
-                        };
-                        let x = &res.x[c * n..(c + 1) * n];
-                        // dG_jc / dA_ab = Y_ja X_bc
-                        for (b, &xb) in x.iter().enumerate() {
-                            let xb = xb.scale_lanes(&w);
-                            for (a, &ya) in y.iter().enumerate() {
-                                put(jt, a + b * n, ya * xb);
-                            }
-                        }
-                        // dG_jc / dB_ac = Y_ja
-                        for (a, &ya) in y.iter().enumerate() {
-                            put(jt, na + a + c * n, ya.scale_lanes(&w));
-                        }
-                        // dG_jc / dC_jb = X_bc
-                        for (b, &xb) in x.iter().enumerate() {
-                            put(jt, na + nb + j + b * l, xb.scale_lanes(&w));
-                        }
-                        // dG_jc / dD_jc = 1
-                        put(
-                            jt,
-                            na + nb + nc + j + c * l,
-                            Cx {
-                                re: w,
-                                im: [0.0; LANES],
-                            },
-                        );
-                    }
+        let mut acc = KronGram::new(&self.shape);
+        let mut w = vec![[0.0; LANES]; lr];
+        let mut err = vec![Cx::default(); lr];
+        for first in (task.first..task.end).step_by(LANES) {
+            let end = (first + LANES).min(task.end);
+            self.batch(form, &mut ws.resolvent, q, (first, end), true)?;
+            self.write_residual(&ws.resolvent, task, (first, end), slice);
+            w.iter_mut().for_each(|x| *x = [0.0; LANES]);
+            err.iter_mut().for_each(|x| *x = Cx::default());
+            for (lane, k) in (first..end).enumerate() {
+                let off = self.data.offset(q, k);
+                for e in 0..lr {
+                    w[e][lane] = self.data.weight()[off + e];
+                    let v = slice[(k - task.first) * lr + e];
+                    err[e].re[lane] = v.re;
+                    err[e].im[lane] = v.im;
                 }
             }
-            let jt = MatRef::from_row_major_slice(&ws.jt[..lti * cols], lti, cols);
-            let rr = MatRef::from_column_major_slice(&ws.rr[..cols], cols, 1);
-            tri_matmul(
-                gram.as_mut(),
-                BlockStructure::TriangularLower,
-                Accum::Add,
-                jt,
-                BlockStructure::Rectangular,
-                jt.transpose(),
-                BlockStructure::Rectangular,
-                1.0,
-                Par::Seq,
-            );
-            let out = faer::ColMut::from_slice_mut(&mut jtr);
-            matmul(out.as_mat_mut(), Accum::Add, jt, rr, 1.0, Par::Seq);
+            acc.add(&ws.resolvent, &w, &err);
         }
         Ok(TaskGram {
             point: q,
-            gram,
-            jtr,
+            parts: acc.finish(&self.shape),
         })
     }
 
@@ -408,25 +323,20 @@ impl Problem {
 /// Per-thread scratch space of the Gauss-Newton evaluation.
 struct Workspace {
     resolvent: Resolvent,
-    jt: Vec<f64>,
-    rr: Vec<f64>,
 }
 
 impl Workspace {
     fn new(shape: &Shape) -> Self {
         Workspace {
             resolvent: Resolvent::new(shape),
-            jt: Vec::new(),
-            rr: Vec::new(),
         }
     }
 }
 
-/// One task's contribution: lower triangle of `J^T J` and `J^T r`.
+/// One task's contribution to its point's Gram matrix and `J^T r`.
 struct TaskGram {
     point: usize,
-    gram: Mat<f64>,
-    jtr: Vec<f64>,
+    parts: GramParts,
 }
 
 impl Objective for Problem {

@@ -131,3 +131,77 @@ fn singular_model_is_an_error_not_a_panic() {
     assert_eq!(err, lpvid::Error::Singular { point: 0, line: 0 });
     assert!(p.gauss_newton(&theta, &FreeSet::all(4)).is_err());
 }
+
+/// `J^T J` and `J^T r` (all parameters free) against the same sums over the
+/// rows of the explicit complex Jacobian of `sensitivity::lti_jacobian`, to
+/// rounding: the Gram matrix comes from the Kronecker structure of the rows
+/// (`lpvid::kron_gram`), grouped by outputs when `l <= r` and by inputs
+/// otherwise, over batches of lines that do not fill the last one.
+fn check_against_rows(n: usize, r: usize, l: usize, nb: usize, discrete: bool) {
+    let (p, theta) = problem(n, r, l, nb, discrete);
+    let shape = *p.shape();
+    let free = FreeSet::for_shape(&shape, None).unwrap();
+    let gn = p.gauss_newton(&theta, &free).unwrap();
+    let data = p.data();
+    let n_points = data.n_points();
+    let basis: Vec<f64> = (0..n_points).flat_map(|q| p.psi(q)[1..].to_vec()).collect();
+    let jac = lpvid::sensitivity::lti_jacobian(&shape, &theta, &basis, n_points, data.z()).unwrap();
+    let e = p.residual(&theta).unwrap();
+    let lti = shape.lti_len();
+    let rows = e.len();
+    // Map every entry of theta to (basis index, LTI index).
+    let mut map = vec![(0, 0); shape.len()];
+    for x in Matrix::ALL {
+        for i in 0..shape.n_coef() {
+            for (k, u) in shape.block(x, i).enumerate() {
+                map[u] = (i, shape.lti_offset(x) + k);
+            }
+        }
+    }
+    let lines = data.n_lines();
+    let lr = l * r;
+    let mut want = vec![0.0; shape.len() * shape.len()];
+    let mut grad = vec![0.0; shape.len()];
+    for row in 0..rows {
+        let q = row / (lines * lr);
+        let w = data.weight()[row];
+        let jrow = &jac[row * lti..(row + 1) * lti];
+        for (u, &(i, pu)) in map.iter().enumerate() {
+            let ju = jrow[pu] * w * p.psi(q)[i];
+            grad[u] += 2.0 * (ju.conj() * e[row]).re;
+            for (v, &(k, pv)) in map.iter().enumerate() {
+                let jv = jrow[pv] * w * p.psi(q)[k];
+                want[u + v * shape.len()] += (ju.conj() * jv).re;
+            }
+        }
+    }
+    let hmax = want.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for (k, (got, w)) in gn.gram.iter().zip(&want).enumerate() {
+        assert!(
+            (got - w).abs() <= 1e-12 * hmax,
+            "J^T J entry {k}: {got} vs {w}"
+        );
+    }
+    let gmax = grad.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for (k, (got, w)) in gn.gradient.iter().zip(&grad).enumerate() {
+        assert!(
+            (got - w).abs() <= 1e-12 * gmax,
+            "gradient {k}: {got} vs {w}"
+        );
+    }
+}
+
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_more_inputs_than_outputs() {
+    check_against_rows(3, 3, 2, 2, true);
+}
+
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_more_outputs_than_inputs() {
+    check_against_rows(4, 1, 3, 1, false);
+}
+
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_square() {
+    check_against_rows(3, 2, 2, 2, false);
+}

@@ -109,8 +109,11 @@ def test_cone_step_matches_cvxpy(rng, gamma, fixed):
     )
     objective = g / M @ d + 0.5 * cp.quad_form(e, cp.psd_wrap(P / np.outer(scale, scale))) + penalty
     prob = cp.Problem(cp.Minimize(objective))
+    # To the accuracy of the step under test (1e-10): at 1e-11 the reference
+    # solve stops at "AlmostSolved" on one case or another as the last bits
+    # of J^T J move (they did when its sums were reordered).
     prob.solve(
-        solver=cp.CLARABEL, tol_gap_abs=1e-11, tol_gap_rel=1e-11, tol_feas=1e-11, max_iter=400
+        solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, max_iter=400
     )
     assert prob.status == "optimal"
     assert out["objective"] == pytest.approx(prob.value, rel=1e-6, abs=1e-9)
