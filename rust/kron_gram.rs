@@ -68,6 +68,10 @@ pub struct KronGram {
     s2: Mat<f64>,
     /// `J^T r` per lane, indexed `a + b (n + l)`.
     jtr: Vec<[f64; LANES]>,
+    /// Scratch of [`KronGram::add`]: the squared weights of one sample's
+    /// weighted side, and `sum_c conj(v_c) w_jc err_jc` of one output.
+    squares: Vec<[f64; LANES]>,
+    t: Vec<Cx>,
 }
 
 /// What one point's lines add up to: `S1`, `S2` and `J^T r` in LTI order.
@@ -102,6 +106,8 @@ impl KronGram {
             s1: Mat::zeros(packed(db), packed(da)),
             s2: Mat::zeros(strict(db), strict(da)),
             jtr: vec![[0.0; LANES]; da * db],
+            squares: vec![[0.0; LANES]; l.max(r)],
+            t: vec![Cx::default(); db],
         }
     }
 
@@ -132,31 +138,29 @@ impl KronGram {
         }
         let cols = self.cols();
         let groups = l.min(r);
-        let mut squares = vec![[0.0; LANES]; l.max(r)];
         for s in 0..groups {
             let col = self.filled + s * LANES;
             // The rank-one side and the weighted side of sample s.
-            for (o, sq) in squares.iter_mut().enumerate() {
+            for (o, sq) in self.squares.iter_mut().enumerate() {
                 let e = if self.by_output { s * r + o } else { o * r + s };
                 for k in 0..LANES {
                     sq[k] = w[e][k] * w[e][k];
                 }
             }
             let one = [[1.0; LANES]];
+            let sq = &self.squares;
             if self.by_output {
                 let u = &self.u[s * da..(s + 1) * da];
-                hermitian(&[u], &one, da, &mut self.u_re, &mut self.u_im, cols, col);
-                let vs: Vec<&[Cx]> = self.v.chunks(db).collect();
-                hermitian(&vs, &squares, db, &mut self.v_re, &mut self.v_im, cols, col);
+                hermitian(u, &one, da, &mut self.u_re, &mut self.u_im, cols, col);
+                hermitian(&self.v, sq, db, &mut self.v_re, &mut self.v_im, cols, col);
             } else {
                 let v = &self.v[s * db..(s + 1) * db];
-                hermitian(&[v], &one, db, &mut self.v_re, &mut self.v_im, cols, col);
-                let us: Vec<&[Cx]> = self.u.chunks(da).collect();
-                hermitian(&us, &squares, da, &mut self.u_re, &mut self.u_im, cols, col);
+                hermitian(v, &one, db, &mut self.v_re, &mut self.v_im, cols, col);
+                hermitian(&self.u, sq, da, &mut self.u_re, &mut self.u_im, cols, col);
             }
         }
         // J^T r: Re sum_{j,c} w_jc conj(u_ja v_cb) err_jc.
-        let mut t = vec![Cx::default(); db];
+        let t = &mut self.t;
         for j in 0..l {
             t.iter_mut().for_each(|x| *x = Cx::default());
             for c in 0..r {
@@ -270,11 +274,12 @@ impl GramParts {
     }
 }
 
-/// Write the upper triangle of `sum_o c_o conj(x_o) x_o^T` (`d x d`) into
-/// column `col` (its [`LANES`] lanes side by side) of the real (diagonal
-/// included) and imaginary (strict) sample buffers, `cols` wide.
+/// Write the upper triangle of `sum_o c_o conj(x_o) x_o^T` (`d x d`, the
+/// vectors `x_o` back to back in `xs`) into column `col` (its [`LANES`]
+/// lanes side by side) of the real (diagonal included) and imaginary
+/// (strict) sample buffers, `cols` wide.
 fn hermitian(
-    xs: &[&[Cx]],
+    xs: &[Cx],
     coef: &[[f64; LANES]],
     d: usize,
     re: &mut [f64],
@@ -285,7 +290,7 @@ fn hermitian(
     for i2 in 0..d {
         for i in 0..=i2 {
             let (mut sr, mut si) = ([0.0; LANES], [0.0; LANES]);
-            for (x, c) in xs.iter().zip(coef) {
+            for (x, c) in xs.chunks(d).zip(coef) {
                 let (p, q) = (&x[i], &x[i2]);
                 for k in 0..LANES {
                     sr[k] += c[k] * (p.re[k] * q.re[k] + p.im[k] * q.im[k]);
