@@ -216,19 +216,30 @@ impl KronGram {
         self.filled = 0;
     }
 
-    /// Everything added so far.
-    pub fn finish(mut self, shape: &Shape) -> GramParts {
+    /// Drop everything added so far.
+    pub fn clear(&mut self) {
+        self.filled = 0;
+        self.s1.as_mut().fill(0.0);
+        self.s2.as_mut().fill(0.0);
+        self.jtr.iter_mut().for_each(|g| *g = [0.0; LANES]);
+    }
+
+    /// Everything added since the last call, which leaves the accumulator
+    /// empty for the next lines (its sample buffers are kept: every column
+    /// is written before it is read).
+    pub fn finish(&mut self, shape: &Shape) -> GramParts {
         self.flush();
         let da = self.n + self.l;
         let mut jtr = vec![0.0; shape.lti_len()];
-        for (ab, g) in self.jtr.iter().enumerate() {
+        for (ab, g) in self.jtr.iter_mut().enumerate() {
             jtr[lti_index(shape, ab % da, ab / da)] = g.iter().sum();
+            *g = [0.0; LANES];
         }
-        GramParts {
-            s1: self.s1,
-            s2: self.s2,
-            jtr,
-        }
+        let (rows, cols) = (self.s1.nrows(), self.s1.ncols());
+        let s1 = std::mem::replace(&mut self.s1, Mat::zeros(rows, cols));
+        let (rows, cols) = (self.s2.nrows(), self.s2.ncols());
+        let s2 = std::mem::replace(&mut self.s2, Mat::zeros(rows, cols));
+        GramParts { s1, s2, jtr }
     }
 }
 

@@ -235,12 +235,16 @@ impl Problem {
     ) -> Result<TaskGram> {
         let lr = self.shape.l * self.shape.r;
         let q = task.point;
-        let mut acc = KronGram::new(&self.shape);
+        let acc = &mut ws.gram;
         let mut w = vec![[0.0; LANES]; lr];
         let mut err = vec![Cx::default(); lr];
         for first in (task.first..task.end).step_by(LANES) {
             let end = (first + LANES).min(task.end);
-            self.batch(form, &mut ws.resolvent, q, (first, end), true)?;
+            if let Err(e) = self.batch(form, &mut ws.resolvent, q, (first, end), true) {
+                // The next task on this thread starts from an empty accumulator.
+                acc.clear();
+                return Err(e);
+            }
             self.write_residual(&ws.resolvent, task, (first, end), slice);
             w.iter_mut().for_each(|x| *x = [0.0; LANES]);
             err.iter_mut().for_each(|x| *x = Cx::default());
@@ -320,15 +324,18 @@ impl Problem {
     }
 }
 
-/// Per-thread scratch space of the Gauss-Newton evaluation.
+/// Per-thread scratch space of the Gauss-Newton evaluation: the resolvent
+/// and the Gram accumulator, reused from task to task.
 struct Workspace {
     resolvent: Resolvent,
+    gram: KronGram,
 }
 
 impl Workspace {
     fn new(shape: &Shape) -> Self {
         Workspace {
             resolvent: Resolvent::new(shape),
+            gram: KronGram::new(shape),
         }
     }
 }
