@@ -268,7 +268,9 @@ impl Problem {
     /// Gradient and `J^T J` over the free parameters from the per-point
     /// Gram matrices. For every pair of basis indices `i <= j`,
     /// `S_ij = sum_q psi_qi psi_qj H_q`; entry `(u, v)` of `J^T J` is
-    /// `S_{i_u i_v}[p_u, p_v]` (and `S_ji = S_ij^T`).
+    /// `S_{i_u i_v}[p_u, p_v]` (and `S_ji = S_ij`: every `H_q` is exactly
+    /// symmetric, so every `S_ij` is too, and a column of `J^T J` reads
+    /// columns of the `S_ij`).
     fn assemble(
         &self,
         full: &[Vec<f64>],
@@ -278,12 +280,8 @@ impl Problem {
         let lti = self.shape.lti_len();
         let m = self.shape.n_coef();
         let n_points = self.data.n_points();
-        // Free parameters grouped by basis index: (position among free, LTI index).
-        let mut by_basis: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m];
-        for (a, &u) in free.indices().iter().enumerate() {
-            let (i, p) = self.param_map[u];
-            by_basis[i].push((a, p));
-        }
+        // Basis index and LTI index of every free parameter.
+        let map: Vec<(usize, usize)> = free.indices().iter().map(|&u| self.param_map[u]).collect();
         let nf = free.len();
         // S_ij for every pair i <= j of basis indices, the pairs in parallel.
         let pairs: Vec<(usize, usize)> = (0..m).flat_map(|i| (i..m).map(move |j| (i, j))).collect();
@@ -300,16 +298,21 @@ impl Problem {
                 s
             })
             .collect();
-        let mut gram = vec![0.0; nf * nf];
-        for (&(i, j), s) in pairs.iter().zip(&sums) {
-            for &(b, pv) in &by_basis[j] {
-                for &(a, pu) in &by_basis[i] {
-                    let v = s[pu + pv * lti];
-                    gram[a + b * nf] = v;
-                    gram[b + a * nf] = v;
-                }
-            }
+        // Pair (i, j), i <= j, at slot i m + j of `sums`.
+        let mut slot = vec![0; m * m];
+        for (k, &(i, j)) in pairs.iter().enumerate() {
+            slot[i * m + j] = k;
         }
+        // Entry (a, b) is S_ij[p_a, p_b] with i <= j the two basis indices
+        // (S_ij is symmetric as every H_q is): whole columns, in parallel.
+        let mut gram = vec![0.0; nf * nf];
+        gram.par_chunks_mut(nf.max(1))
+            .zip(&map)
+            .for_each(|(col, &(j, pv))| {
+                for (out, &(i, pu)) in col.iter_mut().zip(&map) {
+                    *out = sums[slot[i.min(j) * m + i.max(j)]][pu + pv * lti];
+                }
+            });
         let gradient = free
             .indices()
             .iter()
