@@ -49,7 +49,10 @@ def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 150) -> Path:
         raise TypeError(f"fig: expected a matplotlib Figure, got {type(fig).__name__}")
     try:
         return write_atomic(
-            target, lambda fh: fig.savefig(fh, format=fmt, dpi=dpi, metadata=_metadata(fmt))
+            target,
+            lambda fh: fig.savefig(
+                fh, format=fmt, dpi=dpi, metadata=_metadata(fmt), **_encoder(fmt)
+            ),
         )
     finally:
         plt.close(fig)
@@ -58,3 +61,11 @@ def save(fig: Figure, path: str | os.PathLike[str], *, dpi: int = 150) -> Path:
 def _metadata(fmt: str) -> dict[str, Any]:
     """No creation date in the files, so that the same figure gives the same bytes."""
     return {"Software": "lpvid"} if fmt == "png" else {"Date": None, "Creator": "lpvid"}
+
+
+def _encoder(fmt: str) -> dict[str, Any]:
+    """PNG at zlib level 1: encoding a report's figures took 0.55 s of 3.6 s at level 6.
+
+    The pixels are the same; the files are about 15 % larger.
+    """
+    return {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
