@@ -146,3 +146,27 @@ def test_ctrl_c_in_the_demo_exits_130_and_writes_nothing(tmp_path):
     assert proc.returncode == 130, err
     assert err.strip().splitlines()[-1] == "lpvid demo: interrupted"
     assert not (out / "report.md").exists() and not (out / "model.json").exists()
+
+
+def test_ctrl_c_in_a_terminal_stops_the_demo_and_its_figure_workers(tmp_path):
+    """SIGINT to the whole process group (a terminal's Ctrl-C) while the figure pool warms up."""
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "demo"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "lpvid.cli", "demo", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own group, as a terminal's foreground job
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    assert proc.stdout is not None
+    for line in proc.stdout:  # the fits run, the workers are starting
+        if "initial models" in line:
+            break
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "lpvid demo: interrupted"
+    assert "Traceback" not in err and "leaked" not in err, err
+    assert not (out / "report.md").exists() and not (out / "model.json").exists()

@@ -1,6 +1,8 @@
 """identify(), reports, model files and the command line, end to end."""
 
+import importlib.util
 import json
+import re
 import warnings
 
 import numpy as np
@@ -82,6 +84,12 @@ def test_demo_writes_its_files(demo):
     report = (out / "report.md").read_text()
     assert f"{numbers['vnls']:.6g}" in report
     assert f"{numbers['groups_chosen']} groups kept" in report
+    if importlib.util.find_spec("matplotlib") is not None:
+        # drawn by the demo's worker processes: every figure the report shows is there
+        shown = re.findall(r"\]\((figures/[^)]+\.png)\)", report)
+        assert len(shown) == 8, shown
+        for rel in shown:
+            assert (out / rel).read_bytes().startswith(b"\x89PNG"), rel
 
 
 def test_demo_model_is_accurate_and_simpler(demo):

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import importlib.util
+import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +30,7 @@ from lpvid._cliargs import (
     out_dir,
     printer,
 )
+from lpvid.figures import FigurePool
 
 __all__ = ["main"]
 
@@ -146,6 +151,24 @@ def _print_result(result: lpvid.IdentifyResult) -> None:
     print(result.summary())
 
 
+@contextlib.contextmanager
+def _figure_pool(figures: bool, say: Any) -> Iterator[Executor | None]:
+    """Worker processes for the report's figures, or None (no figures, no matplotlib)."""
+    if not figures or importlib.util.find_spec("matplotlib") is None:
+        yield None
+        return
+    try:
+        pool = FigurePool(max(1, min(4, os.cpu_count() or 1)))
+    except OSError as exc:  # no process pools here (no semaphores, say)
+        say(f"figures drawn in this process ({one_line(exc)})")
+        yield None
+        return
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def _run(
     result_of: Any,
     out: str,
@@ -155,11 +178,14 @@ def _run(
     description: str | None,
     **labels: Any,
 ) -> int:
-    result = result_of()
-    say("writing the report")
-    path = lpvid.report.write_report(
-        result, out, title=title, description=description, figures=figures, **labels
-    )
+    # The figures' worker processes start now and import matplotlib while
+    # identify computes.
+    with _figure_pool(figures, say) as pool:
+        result = result_of()
+        say("writing the report")
+        path = lpvid.report.write_report(
+            result, out, title=title, description=description, figures=figures, pool=pool, **labels
+        )
     _print_result(result)
     print(f"report: {path}")
     print(f"model: {Path(out) / 'model.json'} (and model.mat for MATLAB)")

@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lpvid._files import write_atomic
+from lpvid.figures import FigurePool, report_jobs, start_drawing
 from lpvid.identified import IdentifyResult
 from lpvid.selected import SelectResult, basis_label
 from lpvid.trust.stability import stability
 from lpvid.trust.steps import refit_line
 
-__all__ = ["write_report", "key_numbers", "select_numbers", "write_select_report"]
+__all__ = ["FigurePool", "write_report", "key_numbers", "select_numbers", "write_select_report"]
 
 
 def key_numbers(result: IdentifyResult) -> dict[str, Any]:
@@ -61,91 +63,6 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
     }
 
 
-def _figures(result: IdentifyResult, folder: Path, labels: dict[str, Any]) -> list[tuple[str, str]]:
-    """Draw the report's figures; returns (caption, relative path) pairs."""
-    from lpvid import plots
-
-    folder.mkdir(parents=True, exist_ok=True)
-    out: list[tuple[str, str]] = []
-    model, data = result.model, result.data
-
-    def keep(fig: Any, name: str, caption: str) -> None:
-        plots.save(fig, folder / name)
-        out.append((caption, f"{folder.name}/{name}"))
-
-    keep(
-        plots.frf_fit(model, data, title="identification points", **labels),
-        "frf_identification.png",
-        "Measured FRF, model FRF, error |G - Gm| and sigma at the identification points",
-    )
-    if result.validation is not None:
-        keep(
-            plots.frf_fit(model, result.validation, title="validation points", **labels),
-            "frf_validation.png",
-            "The same at the validation points",
-        )
-    if data.n_params == 1:
-        lo, hi = data.p_range
-        keep(
-            plots.magnitude_surface(
-                model, data.freqs_hz, np.linspace(lo, hi, 60), p_marks=data.p, **labels
-            ),
-            "surface.png",
-            "Magnitude of the chosen model over frequency and scheduling",
-        )
-    cov = result.covariance
-    if cov is not None:
-        band_labels = {k: v for k, v in labels.items() if k != "p_label"}
-        p_label = labels.get("p_label", "p")
-        keep(
-            plots.frf_band(
-                cov, data, title="identification points", p_label=p_label, **band_labels
-            ),
-            "band_identification.png",
-            "Model FRF with its 95 % band (first-order covariance) and the measured FRF "
-            "at the identification points",
-        )
-        if result.validation is not None:
-            keep(
-                plots.frf_band(
-                    cov,
-                    result.validation,
-                    title="validation points",
-                    p_label=p_label,
-                    **band_labels,
-                ),
-                "band_validation.png",
-                "The same at the validation points, where the model was not fitted",
-            )
-        if data.n_params == 1:
-            lo, hi = data.p_range
-            keep(
-                plots.frf_std_map(
-                    cov,
-                    data.freqs_hz,
-                    np.linspace(lo, hi, 60),
-                    p_marks=data.p,
-                    p_label=p_label,
-                ),
-                "band_map.png",
-                "Width of the 95 % band relative to |G_m| over frequency and scheduling "
-                "(first output and input; dashed: identification points)",
-            )
-    keep(
-        plots.group_norms({"SMILE": result.initial, "chosen": model}),
-        "group_norms.png",
-        "Relative group magnitudes of the SMILE model and the chosen model",
-    )
-    keep(
-        # The entries carry the unregularised model and, when given, validation V_NLS
-        # with its noise floor.
-        plots.accuracy_path(result.entries, chosen=result.chosen),
-        "path.png",
-        "Accuracy against simplicity along the l2,1 path",
-    )
-    return out
-
-
 def write_report(
     result: IdentifyResult,
     out_dir: str | os.PathLike[str],
@@ -156,6 +73,7 @@ def write_report(
     inputs: Any = None,
     outputs: Any = None,
     p_label: str | None = None,
+    pool: Executor | None = None,
 ) -> Path:
     """Write a Markdown report, its figures, the model files and the key numbers.
 
@@ -180,6 +98,11 @@ def write_report(
         Names (with units) of the inputs and outputs, for the figures.
     p_label : str, optional
         Name (with unit) of the scheduling parameter, for the figures.
+    pool : concurrent.futures.Executor, optional
+        Draws the figures in its workers while the rest of the report is
+        written: a process pool (:class:`FigurePool`) puts
+        them on other cores; threads do not help, matplotlib holds the GIL.
+        Without, they are drawn here one after the other.
 
     Returns
     -------
@@ -195,17 +118,19 @@ def write_report(
     write_atomic(out / "result.json", lambda fh: fh.write(text))
     drawn: list[tuple[str, str]] = []
     figure_note = ""
-    if figures:
+    labels = {
+        k: v
+        for k, v in (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
+        if v is not None
+    }
+    wait = start_drawing(report_jobs(result, labels), out / "figures", pool) if figures else None
+    trust = _trust(result)  # while the pool draws
+    if wait is not None:
         try:
-            labels = {
-                k: v
-                for k, v in (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
-                if v is not None
-            }
-            drawn = _figures(result, out / "figures", labels)
+            drawn = wait()
         except ImportError as exc:
             figure_note = f"(figures skipped: {exc})"
-    md = _markdown(result, title, description, drawn, figure_note, _trust(result))
+    md = _markdown(result, title, description, drawn, figure_note, trust)
     return write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
 
 
