@@ -11,7 +11,7 @@ use crate::fit::{
 };
 use crate::layout::FreeSet;
 use crate::objective::{GaussNewton, Objective};
-use faer::Mat;
+use faer::{Mat, MatRef};
 use std::time::Instant;
 
 /// Settings of [`levenberg_marquardt`].
@@ -79,9 +79,11 @@ pub fn marquardt_diagonal(gn: &GaussNewton) -> Vec<f64> {
 /// numerically positive definite.
 pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Option<Vec<f64>> {
     let m = gn.dim();
-    let mat = Mat::from_fn(m, m, |i, j| {
-        gn.gram[i + j * m] + if i == j { mu * diag[i] } else { 0.0 }
-    });
+    // A copy (the factorisation overwrites it), then the diagonal.
+    let mut mat = MatRef::from_column_major_slice(&gn.gram, m, m).to_owned();
+    for (i, d) in diag.iter().enumerate() {
+        mat[(i, i)] = gn.gram[i + i * m] + mu * d;
+    }
     let l = cholesky(mat)?;
     let mut d = Mat::from_fn(m, 1, |i, _| -0.5 * gn.gradient[i]);
     cholesky_solve(&l, d.as_mut());

@@ -288,14 +288,18 @@ impl Problem {
         let sums: Vec<Vec<f64>> = pairs
             .par_iter()
             .map(|&(i, j)| {
-                let mut s = vec![0.0; lti * lti];
+                // The first term written, the others added (no pass of zeros).
+                let mut s: Option<Vec<f64>> = None;
                 for (q, hq) in full.iter().enumerate().take(n_points) {
                     let c = self.psi(q)[i] * self.psi(q)[j];
                     if c != 0.0 {
-                        s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h);
+                        match s.as_mut() {
+                            None => s = Some(hq.iter().map(|h| c * h).collect()),
+                            Some(s) => s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h),
+                        }
                     }
                 }
-                s
+                s.unwrap_or_else(|| vec![0.0; lti * lti])
             })
             .collect();
         // Pair (i, j), i <= j, at slot i m + j of `sums`.
