@@ -148,6 +148,30 @@ def test_single_output_observability_form_makes_c_constant(rng):
     assert model.info["constant_groups"] >= 3 + 3  # C and D (D = 0)
 
 
+@pytest.mark.parametrize("kind", ["observability", "controllability"])
+def test_krylov_reference_conditions_match_the_pairwise_loop(rng, kind):
+    """The batched worst-case condition numbers are those of one SVD per transform."""
+    from lpvid.initial import coherent
+
+    models = [lti(scramble(gantry_like(q), rng)) for q in GANTRY_P]
+    ss = [(m.A[0], m.B[0], m.C[0], m.D[0]) for m in models]
+    c, rho = coherent._shift_scale(ss)
+    K = [coherent._krylov(m, kind, c, rho) for m in ss]
+    pinvs = [np.linalg.pinv(k) for k in K]
+
+    def cond(i, k):
+        T = pinvs[i] @ K[k] if kind == "observability" else K[i] @ pinvs[k]
+        s = np.linalg.svd(T, compute_uv=False)
+        return s[0] / s[-1]
+
+    want = [max(cond(i, k) for k in range(len(ss))) for i in range(len(ss))]
+    np.testing.assert_allclose(coherent._worst_conditions(K, pinvs, kind), want, rtol=1e-12)
+    # A singular transform (a point whose Krylov matrix lost rank) is infinitely bad.
+    K[1] = np.zeros_like(K[1])
+    worst = coherent._worst_conditions(K, [np.linalg.pinv(k) for k in K], kind)
+    assert np.all(np.isinf(worst))
+
+
 # ---------------------------------------------------------------- hard cases
 def test_modes_crossing_between_points_are_tracked(rng):
     """Mode 1 sweeps 100 -> 200 Hz through mode 2 (180 -> 120 Hz); they cross at p = 0.375.

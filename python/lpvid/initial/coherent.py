@@ -141,6 +141,23 @@ def _cond(T: Arr) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else np.inf
 
 
+def _worst_conditions(K: Sequence[Arr], pinvs: Sequence[Arr], kind: str) -> Arr:
+    """``max_k cond(T_ik)`` for every reference ``i``: all ``N^2`` transforms in one batch.
+
+    One stacked product and one stacked SVD instead of ``N^2`` small ones
+    (at N = 24 points, a leave-one-out check builds this 96 times: 55 000
+    SVD calls of 6 x 6 matrices took 1.3 s). A singular transform counts as
+    infinitely ill-conditioned.
+    """
+    Ks, Ps = np.stack(K), np.stack(pinvs)
+    T = Ps[:, None] @ Ks[None, :] if kind == "observability" else Ks[:, None] @ Ps[None, :]
+    s = np.linalg.svd(T, compute_uv=False)
+    big, small = s[..., 0], s[..., -1]
+    cond = np.full(small.shape, np.inf)
+    np.divide(big, small, out=cond, where=small > 0)
+    return np.where(np.isnan(cond), np.inf, cond).max(axis=1)
+
+
 def krylov_form(models: Sequence[Ss], kind: str) -> tuple[list[Ss], dict[str, float | int]]:
     """The SMILE authors' observability- or controllability-based coherent form.
 
@@ -169,13 +186,12 @@ def krylov_form(models: Sequence[Ss], kind: str) -> tuple[list[Ss], dict[str, fl
     """
     c, rho = _shift_scale(models)
     K = [_krylov(m, kind, c, rho) for m in models]
-    N = len(models)
     pinvs = [np.linalg.pinv(k) for k in K]
 
     def tr(i: int, k: int) -> Arr:
         return pinvs[i] @ K[k] if kind == "observability" else K[i] @ pinvs[k]
 
-    worst = np.array([max(_cond(tr(i, k)) for k in range(N)) for i in range(N)])
+    worst = _worst_conditions(K, pinvs, kind)
     ref = int(np.argmin(worst))
     if not np.isfinite(worst[ref]) or worst[ref] > MAX_COND:
         raise CoherenceError(
