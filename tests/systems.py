@@ -108,3 +108,23 @@ def heavily_damped(s: float) -> Ss:
     B = np.array([[0.36], [-0.66], [-0.62], [0.44], [-0.2], [-0.04]])
     C = np.array([[-2.5, -2.7, 0.34, 0.33, 1.4, 0.72]])
     return block_diag(*blocks), B, C, np.zeros((1, 1))
+
+
+def first_order_frf():
+    """Noisy FRFs of a one-state discrete-time system whose pole moves with p.
+
+    Four points p = 0, 1/3, 2/3, 1 (pole 0.8 at the ends, 0.87 inside), 40
+    lines up to Nyquist, 2 % noise; ``(data, validation)`` with validation
+    at the two inner points (an lpvid.FrfData each).
+    """
+    import lpvid
+
+    a = 0.9 - 0.1 * np.abs(2 * np.array([0.0, 1 / 3, 2 / 3, 1.0]) - 1)
+    f = np.linspace(0.02, 0.5, 40)
+    z = np.exp(2j * np.pi * f)
+    G = (0.1 / (z[None, :] - a[:, None]))[:, :, None, None]
+    rng = np.random.default_rng(3)
+    sigma = 0.02 * np.abs(G)
+    G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
+    data = lpvid.FrfData([0.0, 1 / 3, 2 / 3, 1.0], f, G, sigma=sigma, Ts=1.0)
+    return data, data.subset([1, 2])

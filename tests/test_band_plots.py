@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from systems import first_order_frf
 
 import lpvid
 from lpvid import plots
@@ -80,15 +81,7 @@ def test_report_has_the_trust_section_and_figures(tmp_path, monkeypatch, plt):
         return path
 
     monkeypatch.setattr(plots, "save", save)
-    a = 0.9 - 0.1 * np.abs(2 * np.array([0.0, 1 / 3, 2 / 3, 1.0]) - 1)
-    f = np.linspace(0.02, 0.5, 40)
-    z = np.exp(2j * np.pi * f)
-    G = (0.1 / (z[None, :] - a[:, None]))[:, :, None, None]
-    rng = np.random.default_rng(3)
-    sigma = 0.02 * np.abs(G)
-    G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
-    data = lpvid.FrfData([0.0, 1 / 3, 2 / 3, 1.0], f, G, sigma=sigma, Ts=1.0)
-    val = data.subset([1, 2])
+    data, val = first_order_frf()
     basis = lpvid.Polynomial(2, domain=(0.0, 1.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)

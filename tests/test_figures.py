@@ -9,8 +9,8 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
+from systems import first_order_frf
 
 import lpvid
 from lpvid.figures import FigureJob, FigurePool, draw, report_jobs, start_drawing
@@ -19,19 +19,12 @@ from lpvid.figures import FigureJob, FigurePool, draw, report_jobs, start_drawin
 @pytest.fixture(scope="module")
 def small_result():
     """A one-state LPV system identified on four points (validation at two of them)."""
-    a = 0.9 - 0.1 * np.abs(2 * np.array([0.0, 1 / 3, 2 / 3, 1.0]) - 1)
-    f = np.linspace(0.02, 0.5, 40)
-    z = np.exp(2j * np.pi * f)
-    G = (0.1 / (z[None, :] - a[:, None]))[:, :, None, None]
-    rng = np.random.default_rng(3)
-    sigma = 0.02 * np.abs(G)
-    G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
-    data = lpvid.FrfData([0.0, 1 / 3, 2 / 3, 1.0], f, G, sigma=sigma, Ts=1.0)
+    data, validation = first_order_frf()
     basis = lpvid.Polynomial(2, domain=(0.0, 1.0))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
         return lpvid.identify(
-            data, 1, basis, validation=data.subset([1, 2]), fixed={"D": True}, gammas=[0.1]
+            data, 1, basis, validation=validation, fixed={"D": True}, gammas=[0.1]
         )
 
 
