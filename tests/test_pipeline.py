@@ -189,9 +189,18 @@ def test_identify_continuous_time_with_d_fixed():
     # at the noise floor on the points and between them: 3 sigma of the floor
     assert e.vnls <= m_id + 3 * np.sqrt(m_id)
     assert e.validation_vnls <= m_val + 3 * np.sqrt(m_val)
-    # A depends on p; D has no group; simpler than the unregularised model
-    assert 1 in e.nonzero_groups["A"] and e.nonzero_groups["D"] == []
+    # The model depends on p; D has no group; simpler than the unregularised model
+    assert e.n_groups >= 1 and e.nonzero_groups["D"] == []
     assert e.n_groups < res.entries[0].n_groups
+    # Which of A(1) and C(1) carries the dependency, the data (4 points, 1 %
+    # noise) cannot tell on this system: over 12 noise seeds either is kept
+    # about as often, at the same V_NLS. What they do fix: the frozen FRFs
+    # between the points, here within 0.3 % of the true system's (RMS over a
+    # grid of 41 values of p; the noise is 1 % per line).
+    grid = np.linspace(0, 1, 41)
+    G_true = true.frf(f, grid)
+    err = np.abs(res.model.frf(f, grid) - G_true)
+    assert np.sqrt(np.mean(err**2) / np.mean(np.abs(G_true) ** 2)) < 3e-3
 
 
 def test_identify_with_two_scheduling_parameters():

@@ -15,6 +15,7 @@ from systems import (
 
 import lpvid
 from lpvid import initial
+from lpvid.settings import FTOL
 
 # ------------------------------------------------------------------ helpers
 DAMPED_FREQS = np.logspace(np.log10(2.0), np.log10(300.0), 150)
@@ -362,6 +363,32 @@ def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
     # The pick refined the same way in both routes ends where it did.
     same = next(c for c in full if c.name == pick.name)
     assert pick.validation_vnls == pytest.approx(same.validation_vnls, rel=0.02)
+
+
+def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard):
+    """Fits that end when a step buys less than FTOL of V_NLS pick what fits run to the end do.
+
+    Every refined start ends by the cost rule (no step limit) with its last
+    accepted step below ``FTOL V_NLS``, in fewer steps than the same race with
+    an ``ftol`` of 1e-10, and lands within the noise of where those end.
+    """
+    data, val = hard
+    local = lpvid.identify_lti(data, 6)
+    kw = dict(validation=val, local=local)
+    quick = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    slow = initial.initial_candidates(data, 6, DAMPED_BASIS, ftol=1e-10, **kw)
+    ended = [c for c in quick if c.refined and c.fit.history and c.fit.history[-1]["accepted"]]
+    assert ended and all(c.fit.stop == "cost_change" for c in ended)
+    for c in ended:
+        rows = [r["vnls"] for r in c.fit.history if r["accepted"]]
+        assert len(rows) >= 2 and rows[-2] - rows[-1] <= FTOL * rows[-2]
+    steps = sum(len(c.fit.history) for c in quick)
+    assert steps < sum(len(c.fit.history) for c in slow)
+    pick, _ = initial.choose(quick)
+    want, _ = initial.choose(slow)
+    assert pick.stable and pick.constant_groups == want.constant_groups
+    assert pick.validation_vnls <= 1.02 * want.validation_vnls
+    assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
 
 
 # ------------------------------------------------------------------ the easy case

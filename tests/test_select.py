@@ -243,9 +243,9 @@ def test_ctrl_c_before_any_pair_is_done(small, python_sigint):
 def test_warnings_are_collected_per_pair_and_the_filters_restored(small):
     _, data, val = small
     filters, show = list(warnings.filters), warnings.showwarning
-    # order 3 for a system of order 2: the spare pole lands outside the stable region
-    with pytest.warns(lpvid.ConvergenceWarning, match="^order 3, poly:1: the chosen model has"):
-        sel = lpvid.select(data, [3], [1], validation=val)
+    # order 5 for a system of order 2: a spare pole lands outside the stable region
+    with pytest.warns(lpvid.ConvergenceWarning, match="^order 5, poly:1: the chosen model has"):
+        sel = lpvid.select(data, [5], [1], validation=val)
     assert warnings.filters == filters and warnings.showwarning is show
     assert sel.row.warnings and all(c is lpvid.ConvergenceWarning for c, _ in sel.row.warnings)
     assert "warning(s)" in sel.table()

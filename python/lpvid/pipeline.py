@@ -271,7 +271,15 @@ def identify(
     _say(progress, f"initial models ({', '.join(routes)}), each refined by fit_nls")
     t = time.perf_counter()
     candidates = initial_candidates(
-        data, n, basis, fixed, validation=validation, routes=routes, forms=forms, local=local
+        data,
+        n,
+        basis,
+        fixed,
+        validation=validation,
+        routes=routes,
+        forms=forms,
+        local=local,
+        ftol=l21.ftol,
     )
     if not candidates:
         raise ValueError("no initial model could be built for these local models")

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from lpvid._checks import positive_int
+from lpvid._checks import positive_float, positive_int
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.cost import vnls_value as vnls
@@ -38,6 +38,7 @@ from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
+from lpvid.settings import FTOL
 
 __all__ = ["ROUTES", "Candidate", "initial_candidates"]
 
@@ -178,6 +179,7 @@ def initial_candidates(
     local: LocalModels | None = None,
     diagnosis: Consistency | None = None,
     max_iter: int = 100,
+    ftol: float = FTOL,
     halving: bool = True,
 ) -> list[Candidate]:
     """Initial LPV models by several routes, each refined by :func:`lpvid.fit_nls`.
@@ -216,6 +218,10 @@ def initial_candidates(
         (default ``local.consistency``, else computed here once).
     max_iter : int
         Most Levenberg-Marquardt steps per fit.
+    ftol : float
+        A fit ends when a step lowers V_NLS by less than ``ftol`` times it
+        (default :data:`lpvid.settings.FTOL`: the rest is a slide along
+        directions the data hardly see; see :func:`lpvid.fit_nls`).
     halving : bool
         Race the starts (:func:`lpvid.initial.race.race`): every start gets
         a few steps, the worse half is dropped, the rest twice as many, and
@@ -245,6 +251,7 @@ def initial_candidates(
         raise ValueError("routes: needs at least one route")
     if validation is not None and not isinstance(validation, FrfData):
         raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
+    ftol = positive_float(ftol, "ftol", allow_zero=True)
     proper = strictly_proper(fixed)
     t = time.perf_counter()
     if local is None:
@@ -271,7 +278,9 @@ def initial_candidates(
             note = f"SMILE ({form} form) of {shared}, refined by fit_nls{missing}"
             mask = fixed_mask(m0, fixed)
             stage = Stage("all groups", mask)
-            runner = Runner(f"{prefix}smile:{form}", m0, [stage], max_iter=max_iter, note=note)
+            runner = Runner(
+                f"{prefix}smile:{form}", m0, [stage], max_iter=max_iter, ftol=ftol, note=note
+            )
             runners.append((runner, build))
 
     globals_: list[tuple[Runner, Any, str]] = []
@@ -302,7 +311,7 @@ def initial_candidates(
             )
             shared = time.perf_counter() - t0
             for stages in ("all", "degree") if levels > 1 else ("all",):
-                runner = global_runner(const, fixed, stages, max_iter)
+                runner = global_runner(const, fixed, stages, max_iter, ftol)
                 runners.append((runner, shared))
                 globals_.append((runner, const, stages))
     if halving:

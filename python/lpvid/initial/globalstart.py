@@ -23,6 +23,7 @@ from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import model_range
+from lpvid.settings import FTOL
 
 __all__ = [
     "STAGES",
@@ -198,11 +199,12 @@ def group_stages(const: ConstantStart, fixed: Any, stages: str) -> list[Stage]:
     return out
 
 
-def global_runner(const: ConstantStart, fixed: Any, stages: str, max_iter: int = 100) -> Runner:
+def global_runner(
+    const: ConstantStart, fixed: Any, stages: str, max_iter: int = 100, ftol: float = FTOL
+) -> Runner:
     """A :class:`~lpvid.initial.race.Runner` that frees the groups of a constant start."""
-    runner = Runner(
-        f"global:{stages}", const.model, group_stages(const, fixed, stages), max_iter=max_iter
-    )
+    stage_list = group_stages(const, fixed, stages)
+    runner = Runner(f"global:{stages}", const.model, stage_list, max_iter=max_iter, ftol=ftol)
     if not runner.stages:  # no basis function: the constant model is the start
         runner.done, runner.fit, runner.start = True, const.fit, const.start
     return runner

@@ -27,6 +27,7 @@ from lpvid.frozen import frozen_stable
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
+from lpvid.settings import FTOL
 
 __all__ = ["ROUNDS", "Runner", "Stage", "race"]
 
@@ -83,6 +84,9 @@ class Runner:
         The fits to run in order.
     max_iter : int
         Most steps per stage.
+    ftol : float
+        A stage ends when a step lowers V_NLS by less than ``ftol`` times
+        it (:data:`lpvid.settings.FTOL`; see :func:`lpvid.fit_nls`).
     start : LpvModel or None
         The model the last stage started from (known once it starts).
     fit : FitResult or None
@@ -101,6 +105,7 @@ class Runner:
     model: LpvModel
     stages: list[Stage]
     max_iter: int = 100
+    ftol: float = FTOL
     note: str = ""
     start: LpvModel | None = None
     fit: FitResult | None = None
@@ -132,7 +137,13 @@ class Runner:
             steps = min(budget, self.max_iter - self._used)
             t0 = time.perf_counter()
             fit = fit_nls(
-                self.model, data, stage.fixed, max_iter=steps, lambda0=self._lambda, warn=False
+                self.model,
+                data,
+                stage.fixed,
+                max_iter=steps,
+                ftol=self.ftol,
+                lambda0=self._lambda,
+                warn=False,
             )
             raise_if_interrupted(fit)
             self.seconds += time.perf_counter() - t0
