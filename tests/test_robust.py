@@ -15,6 +15,8 @@ from systems import (
 
 import lpvid
 from lpvid import initial
+from lpvid.frozen import frozen_stable
+from lpvid.schedule import between_points
 from lpvid.settings import FTOL
 
 # ------------------------------------------------------------------ helpers
@@ -329,7 +331,8 @@ def test_hard_case_plain_route_stalls_and_the_robust_route_reaches_the_noise_flo
         best, _ = initial.choose(route)
         assert best.vnls < 1.1 * M and best.validation_vnls < 1.3 * Mv, prefix
     # The interpolated plain models go unstable between the points; the chosen one does not.
-    assert chosen.stable and not any(c.stable for c in cands if c.name.startswith("smile:"))
+    between = between_points(data.p)
+    assert chosen.stable and not any(frozen_stable(f.model, between) for f in plain.values())
 
 
 def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
@@ -389,6 +392,29 @@ def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard)
     assert pick.stable and pick.constant_groups == want.constant_groups
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
+
+
+def test_hopeless_starts_leave_after_one_step_and_the_race_goes_on_as_before(hard, monkeypatch):
+    """Starts far above the best start take one step; the others race exactly as if they ran."""
+    from lpvid.initial import race
+
+    data, val = hard
+    local = lpvid.identify_lti(data, 6)
+    kw = dict(validation=val, local=local)
+    limit = race.HOPELESS
+    quick = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    monkeypatch.setattr(race, "HOPELESS", np.inf)
+    full = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    # The models the runners started from ("global:all" starts from the constant model).
+    start = {c.name: lpvid.vnls(c.start, data) for c in full if c.name != "global:degree"}
+    one = [c for c in quick if len(c.fit.history) == 1]
+    assert one and all("after 1 steps" in c.note and not c.refined for c in one)
+    assert all(start[c.name] > limit * min(start.values()) for c in one)
+    for a, b in zip(quick, full, strict=True):
+        assert a.name == b.name and a.refined == b.refined
+        if a.refined:  # the same fit, to the last bit
+            assert np.array_equal(a.model.theta, b.model.theta)
+    assert sum(len(c.fit.history) for c in quick) < sum(len(c.fit.history) for c in full)
 
 
 # ------------------------------------------------------------------ the easy case

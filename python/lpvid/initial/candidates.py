@@ -307,7 +307,7 @@ def initial_candidates(
             levels = len(set(degree_levels(basis)))
             t0 = time.perf_counter()
             const = constant_start(
-                data, n, basis, fixed, local=local, point=root, max_iter=max_iter
+                data, n, basis, fixed, local=local, point=root, max_iter=max_iter, ftol=ftol
             )
             shared = time.perf_counter() - t0
             for stages in ("all", "degree") if levels > 1 else ("all",):

@@ -66,6 +66,7 @@ def global_start(
     point: int | None = None,
     stages: str = "all",
     max_iter: int = 100,
+    ftol: float = FTOL,
 ) -> LpvModel:
     """An LPV start from one good local model: constant first, then the basis groups.
 
@@ -100,6 +101,9 @@ def global_start(
         How the groups are freed.
     max_iter : int
         Most Levenberg-Marquardt steps per stage.
+    ftol : float
+        A stage ends when a step lowers V_NLS by less than ``ftol`` times it
+        (default :data:`lpvid.settings.FTOL`; see :func:`lpvid.fit_nls`).
 
     Returns
     -------
@@ -111,8 +115,10 @@ def global_start(
     """
     if stages not in STAGES:
         raise ValueError(f"stages: expected one of {STAGES}, got {stages!r}")
-    const = constant_start(data, order, basis, fixed, local=local, point=point, max_iter=max_iter)
-    return free_groups(const, data, fixed, stages, max_iter=max_iter)[0]
+    const = constant_start(
+        data, order, basis, fixed, local=local, point=point, max_iter=max_iter, ftol=ftol
+    )
+    return free_groups(const, data, fixed, stages, max_iter=max_iter, ftol=ftol)[0]
 
 
 @dataclass
@@ -149,6 +155,7 @@ def constant_start(
     local: LocalModels | None = None,
     point: int | None = None,
     max_iter: int = 100,
+    ftol: float = FTOL,
 ) -> ConstantStart:
     """Steps 1 and 2 of :func:`global_start`: the constant model that best fits every point.
 
@@ -181,7 +188,7 @@ def constant_start(
     model = LpvModel(*mats, basis=basis, Ts=data.Ts, p_range=model_range(data.p))
     check_compatible(model, data)
     mask = fixed_mask(model, fixed) | _group_mask(model, range(1, nb + 1))
-    fit = raise_if_interrupted(fit_nls(model, data, mask, max_iter=max_iter, warn=False))
+    fit = raise_if_interrupted(fit_nls(model, data, mask, max_iter=max_iter, ftol=ftol, warn=False))
     history = [{"free_groups": "constant only", "vnls": float(fit.vnls), "n_iter": fit.n_iter}]
     return ConstantStart(fit.model, int(point), history, fit, model)
 
@@ -230,6 +237,7 @@ def free_groups(
     stages: str,
     *,
     max_iter: int = 100,
+    ftol: float = FTOL,
 ) -> tuple[LpvModel, FitResult, LpvModel]:
     """Step 3 of :func:`global_start`: free the groups of a constant start.
 
@@ -242,7 +250,7 @@ def free_groups(
     stage_start : LpvModel
         The model the last stage started from.
     """
-    runner = global_runner(const, fixed, stages, max_iter)
+    runner = global_runner(const, fixed, stages, max_iter, ftol)
     while not runner.done:
         runner.advance(data, max_iter)
     model = finish_global(runner, const, stages)
