@@ -17,12 +17,19 @@
 //! quadratic model on its free entries is no longer than
 //! `gamma phi_g varphi_g` (the subgradient condition). Groups predicted to
 //! end at zero are fixed there (`d_g = -theta_g`) and leave the cone
-//! program; after the solve the condition is checked for each of them, and
-//! any that fails it is put back and the program solved again. The answer
-//! is the exact solution of (27), from a smaller program: on a
+//! program: the groups at zero already, and those whose gradient stays
+//! well inside the bound. After the solve the condition is checked for each
+//! of them, and any that fails it is put back and the program solved again.
+//! The answer is the exact solution of (27), from a smaller program: on a
 //! regularisation path most groups are at zero, and when all are, no cone
 //! solve is needed at all. Groups that the solver leaves at a negligible
 //! size are set exactly to zero, so that the next step can fix them.
+//!
+//! A group at zero stays out even when its gradient is at or over its
+//! bound at the current point: the other groups' moves usually bring it
+//! back inside (measured on the n = 16 2x2 path: with such groups in the
+//! program, 1088 variables per solve where the answer moved 576, and a
+//! cone step took 3.5 times as long).
 
 mod ahead;
 mod group;
@@ -140,25 +147,34 @@ impl ConeProblem<'_> {
         let active: Vec<usize> = (0..self.groups.len())
             .filter(|&k| self.groups[k].is_active())
             .collect();
-        // Prediction: the groups whose gradient at the current point stays
-        // well inside their bound, confirmed at the point where all of them
-        // are at zero.
+        // Prediction: the groups at zero already, and the groups whose
+        // gradient at the current point stays well inside their bound,
+        // confirmed at the point where all of them are at zero. A group at
+        // zero stays out of the program even when its gradient is near or
+        // over its bound: the check after the solve puts it back when the
+        // solution needs it.
         let scale = self.jacobi_scale(mu);
         if scale.iter().any(|s| !s.is_finite()) {
             return ConeStep::failed("the quadratic has a zero or non-finite diagonal");
         }
         let curvature = self.pinned.map(|p| p.scaled_curvature(&scale));
         let grad0 = self.model_gradient(mu, &vec![0.0; nf]);
+        let resting: Vec<bool> = self
+            .groups
+            .iter()
+            .map(|g| g.norm_at(self.theta) == 0.0)
+            .collect();
         let mut zero: Vec<bool> = vec![false; self.groups.len()];
         for &k in &active {
             let g = &self.groups[k];
-            zero[k] = g.can_vanish(self.theta) && g.free_norm(&grad0) <= 0.9 * self.bound(g);
+            zero[k] = resting[k]
+                || (g.can_vanish(self.theta) && g.free_norm(&grad0) <= 0.9 * self.bound(g));
         }
         let at_zero = self.zero_step(&zero);
         let grad = self.model_gradient(mu, &at_zero);
         for &k in &active {
             let g = &self.groups[k];
-            zero[k] = zero[k] && g.free_norm(&grad) <= self.bound(g);
+            zero[k] = zero[k] && (resting[k] || g.free_norm(&grad) <= self.bound(g));
         }
         let mut iterations = 0;
         let mut solves = 0;
