@@ -196,14 +196,17 @@ def _drop_hopeless(
     best = min((c for c in costs if math.isfinite(c)), default=math.inf)
     if not math.isfinite(best):
         return runners  # no start to compare with
+    kept = []
     for r, cost in zip(runners, costs, strict=True):
-        if not cost <= HOPELESS * best:
-            r.advance(data, 1)
-            if not r.done:
-                r.dropped = r.steps
-            if step is not None:
-                step(r)
-    return [r for r, cost in zip(runners, costs, strict=True) if cost <= HOPELESS * best]
+        if cost <= HOPELESS * best:
+            kept.append(r)
+            continue
+        r.advance(data, 1)
+        if not r.done:
+            r.dropped = r.steps
+        if step is not None:
+            step(r)
+    return kept
 
 
 def race(
@@ -238,18 +241,17 @@ def race(
     step : callable, optional
         Called with each runner after each of its rounds (progress).
     """
-    alive = [r for r in runners if not r.done]
-    entered = len(alive)
-    alive = _drop_hopeless(alive, data, step)
-    for budget in rounds:
+    entered = [r for r in runners if not r.done]
+    alive = _drop_hopeless(entered, data, step)
+    for round_, budget in enumerate(rounds):
         for r in alive:
             r.advance(data, budget)
             if step is not None:
                 step(r)
         keys = sorted(_rank(alive, data, validation))
         finite = [k for k in keys if math.isfinite(k[1])] or keys
-        n_keep = max(keep, math.ceil(max(entered, len(alive)) / 2))
-        entered = 0  # the hopeless count in the first round only
+        counted = entered if round_ == 0 else alive  # the hopeless count in the first round
+        n_keep = max(keep, math.ceil(len(counted) / 2))
         stay = {k[2] for k in finite[:n_keep]}
         for k, r in enumerate(alive):
             if k not in stay and not r.done:
