@@ -26,7 +26,15 @@ from lpvid.basis import Polynomial
 from lpvid.data import FrfData
 from lpvid.model import LpvModel
 
-__all__ = ["random_lpv", "modal_lpv", "direct_frf", "noisy_data"]
+__all__ = [
+    "random_lpv",
+    "modal_lpv",
+    "one_group_lpv",
+    "crossing_lpv",
+    "direct_frf",
+    "noisy_data",
+    "worst_relative_error",
+]
 
 
 def _generator(rng: object) -> np.random.Generator:
@@ -159,6 +167,135 @@ def modal_lpv(
     return LpvModel(A, B, C, D, basis)
 
 
+def _modal_blocks(freqs_hz: NDArray[np.float64], damping: float) -> NDArray[np.float64]:
+    """Block-diagonal real modal form, one 2 x 2 block per frequency (linear in it)."""
+    n = 2 * freqs_hz.size
+    out = np.zeros((n, n))
+    for k, f in enumerate(freqs_hz):
+        w = 2 * np.pi * f
+        out[2 * k : 2 * k + 2, 2 * k : 2 * k + 2] = [[-damping * w, w], [-w, -damping * w]]
+    return out
+
+
+def one_group_lpv(seed: int = 0, n: int = 10) -> LpvModel:
+    """A known continuous-time SISO model whose scheduling dependence is one group, A(1).
+
+    ``A(mu) = A0 + mu A1`` with ``B``, ``C`` constant and ``D = 0``, written
+    in random (dense) state coordinates: ``n/2`` modes at 8-60 Hz whose
+    frequencies move by up to 25 % over ``mu`` in [0, 1], 3 % damping,
+    coupled by a small random part of ``A1``. Over
+    ``Polynomial(2, domain=(0, 1))`` its groups are ``A(1)`` only
+    (``A(2) = 0``): a sparse truth for the l2,1 path to keep. Its frozen
+    models are stable on [0, 1] for the seeds the tests use (check with
+    :func:`lpvid.stability`).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the random numbers.
+    n : int
+        Number of states (even).
+
+    Returns
+    -------
+    LpvModel
+
+    Examples
+    --------
+    >>> import lpvid.testing
+    >>> m = lpvid.testing.one_group_lpv(0)
+    >>> m.group_norms().count()
+    1
+
+    """
+    n = positive_int(n, "n", minimum=2)
+    if n % 2:
+        raise ValueError(f"n: expected an even number of states, got {n}")
+    rng = np.random.default_rng(seed)
+    modes = n // 2
+    f0 = np.sort(rng.uniform(8, 60, modes))
+    df = rng.uniform(-0.25, 0.25, modes) * f0
+    T = np.eye(n) + 0.3 * rng.normal(size=(n, n))
+    Ti = np.linalg.inv(T)
+    A0 = T @ _modal_blocks(f0, 0.03) @ Ti
+    coupling = rng.normal(size=(n, n)) * 0.3 * 2 * np.pi * np.abs(df).mean() / np.sqrt(n)
+    A1 = T @ (_modal_blocks(df, 0.03) + coupling) @ Ti
+    B = T @ rng.normal(size=(n, 1)) * 2 * np.pi * 20
+    C = rng.normal(size=(1, n)) @ Ti
+
+    def only(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.stack([x, 0 * x, 0 * x])
+
+    A = np.stack([A0 + A1 / 2, A1 / 2, 0 * A1])  # mu = (s + 1) / 2
+    return LpvModel(A, only(B), only(C), np.zeros((3, 1, 1)), Polynomial(2, domain=(0.0, 1.0)))
+
+
+def crossing_lpv(n_params: int = 3, seed: int = 0) -> LpvModel:
+    """A known continuous-time MIMO model on several scheduling parameters with crossing modes.
+
+    10 states (5 modes, 2 % damping), 3 outputs x 2 inputs, ``D = 0``,
+    ``n_params`` (2 or 3) scheduling parameters on [0, 1] each, over
+    ``Polynomial(2, domain=[(0, 1)] * n_params)`` (every monomial of total
+    degree 1-2). In its own real modal coordinates: every mode's frequency
+    moves linearly with ``p1`` and two modes cross along it (18 -> 30 Hz
+    and 30 -> 18 Hz), the highest mode also moves with ``p2`` (quadratic);
+    the input shapes move linearly with ``p2``, and with 3 parameters the
+    output shapes move linearly with ``p3``. Written in random state
+    coordinates (a constant transformation), it uses 4 groups with two
+    parameters (A: s1, s2, s2^2; B: s2) and 5 with three (and C: s3).
+
+    Parameters
+    ----------
+    n_params : int
+        2 or 3.
+    seed : int
+        Seed of the random state coordinates and shapes.
+
+    Returns
+    -------
+    LpvModel
+
+    Examples
+    --------
+    >>> import lpvid.testing
+    >>> m = lpvid.testing.crossing_lpv(3)
+    >>> m.n_outputs, m.n_inputs, m.basis.n_params, m.group_norms().count()
+    (3, 2, 3, 5)
+
+    """
+    n_params = positive_int(n_params, "n_params", minimum=2)
+    if n_params > 3:
+        raise ValueError(f"n_params: expected 2 or 3, got {n_params}")
+    rng = np.random.default_rng(seed)
+    basis = Polynomial(2, domain=[(0.0, 1.0)] * n_params)
+    names = basis.names
+    # Frequencies in Hz as polynomials in the scaled s in [-1, 1]: constant and
+    # per-monomial coefficients. Modes 1 and 2 cross along p1.
+    const = np.array([9.0, 24.0, 24.0, 45.0, 70.0])
+    lin1 = np.array([1.5, -6.0, 6.0, 3.0, -4.0])
+    coef = {"": const, "s1": lin1, "s2": np.array([0, 0, 0, 0, 5.0]), "s2^2": np.zeros(5)}
+    coef["s2^2"][4] = 3.0
+    n, l, r, nb = 10, 3, 2, len(names)
+    T = np.eye(n) + 0.3 * rng.normal(size=(n, n))
+    Ti = np.linalg.inv(T)
+    A = np.zeros((nb + 1, n, n))
+    A[0] = _modal_blocks(const, 0.02)
+    for name, c in coef.items():
+        if name:
+            A[1 + names.index(name)] = _modal_blocks(c, 0.02) - _modal_blocks(0 * c, 0.02)
+    B = np.zeros((nb + 1, n, r))
+    B[0, 1::2] = rng.normal(size=(5, r)) * 2 * np.pi * 30
+    B[1 + names.index("s2"), 1::2] = 0.3 * rng.normal(size=(5, r)) * 2 * np.pi * 30
+    C = np.zeros((nb + 1, l, n))
+    C[0] = rng.normal(size=(l, n))
+    if n_params == 3:
+        C[1 + names.index("s3")] = 0.3 * rng.normal(size=(l, n))
+    A = np.einsum("ij,kjl,lm->kim", T, A, Ti)
+    B = np.einsum("ij,kjl->kil", T, B)
+    C = np.einsum("kij,jl->kil", C, Ti)
+    return LpvModel(A, B, C, np.zeros((nb + 1, l, r)), basis)
+
+
 def direct_frf(model: LpvModel, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.complex128]:
     """Frequency response by a dense numpy solve at every point and frequency.
 
@@ -230,3 +367,28 @@ def noisy_data(
     sigma = level * (0.5 + gen.random(G.shape)) * (np.abs(G) + 0.1)
     noise = sigma * (gen.normal(size=G.shape) + 1j * gen.normal(size=G.shape)) / np.sqrt(2)
     return FrfData(p, freqs_hz, G + noise, sigma, Ts=model.Ts)
+
+
+def worst_relative_error(
+    model: LpvModel, true: LpvModel, freqs_hz: ArrayLike, p: ArrayLike
+) -> float:
+    """The worst, over the scheduling values ``p``, of the relative FRF error against ``true``.
+
+    At every ``p[q]``: ``||G(p[q]) - G_true(p[q])|| / ||G_true(p[q])||``,
+    Frobenius norms over every line, output and input.
+
+    Parameters
+    ----------
+    model, true : LpvModel
+    freqs_hz : array_like, shape (F,)
+    p : array_like, shape (N,) or (N, Np)
+
+    Returns
+    -------
+    float
+
+    """
+    G, Gt = model.frf(freqs_hz, p), true.frf(freqs_hz, p)
+    err = np.linalg.norm((G - Gt).reshape(len(G), -1), axis=1)
+    ref = np.linalg.norm(Gt.reshape(len(Gt), -1), axis=1)
+    return float(np.max(err / ref))
