@@ -439,18 +439,23 @@ def test_gantry_does_at_least_as_well_as_the_plain_route():
 
 
 # ------------------------------------------------------------------ choose
-def fake(name, v, val=None, groups=0, stable=True, floor=1000):
+def fake(name, v, val=None, dep=1.0, stable=True, floor=1000):
     m = lpvid.LpvModel(np.zeros((1, 1, 1)), np.ones((1, 1, 1)), np.ones((1, 1, 1)))
     return initial.Candidate(
-        name, m, v, floor, val, None if val is None else 500, 0.0, groups, stable
+        name, m, v, floor, val, None if val is None else 500, 0.0, 0, stable, dependence=dep
     )
 
 
 def test_choose_prefers_validation_then_simplicity():
-    cands = [fake("a", 990, 700), fake("b", 1200, 520), fake("c", 1000, 525, groups=3)]
+    cands = [fake("a", 990, 700), fake("b", 1200, 520), fake("c", 1000, 525, dep=0.3)]
     pick, reason = initial.choose(cands)
     assert pick.name == "c"  # within 2 % of the best validation and simpler
     assert "simplest" in reason
+    # Dependences within 5 % of the least tie: then the lower validation V_NLS.
+    pick, _ = initial.choose([*cands, fake("d", 1000, 522, dep=0.31)])
+    assert pick.name == "d"
+    pick, _ = initial.choose([*cands, fake("e", 1000, 522, dep=0.33)])
+    assert pick.name == "c"
     pick, _ = initial.choose(cands, tolerance=0.0)
     assert pick.name == "b"
     # A model unstable between the points loses even with the best validation.
@@ -462,8 +467,8 @@ def test_choose_without_validation_uses_the_noise_floor_and_stability():
     cands = [
         fake("unstable", 900, stable=False),
         fake("rich", 1000),
-        fake("simple", 1040, groups=2),  # within 2 sqrt(1000) = 63 of the best stable one
-        fake("poor", 1500, groups=5),
+        fake("simple", 1060, dep=0.2),  # within 2 sqrt(1000) = 63 of the best stable one
+        fake("poor", 1070, dep=0.1),  # not within it
     ]
     pick, reason = initial.choose(cands)
     assert pick.name == "simple"

@@ -118,24 +118,63 @@ def test_identify_with_and_without_stability(peaked):
     assert kept.final.vnls < 1.02 * free.final.vnls
 
 
+def _peaked_at(p, seed):
+    a = 0.995 - 0.1 * np.abs(2 * np.asarray(p) - 1) ** 3
+    f = np.linspace(0.02, 0.5, 60)
+    z = np.exp(2j * np.pi * f)
+    G = (0.1 / (z[None, :] - a[:, None]))[:, :, None, None]
+    sigma = 0.05 * np.abs(G)
+    rng = np.random.default_rng(seed)
+    G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
+    return lpvid.FrfData(p, f, G, sigma=sigma, Ts=1.0)
+
+
 def test_refit_removes_the_shrinkage(peaked):
     res = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True, gammas=[0.1])
-    assert res.entry.gamma == 0.1 and res.refit is not None
+    e = res.entry
+    assert e.gamma == 0.1 and 0 < e.n_groups < res.entries[0].n_groups
+    fit, held = lpvid.refit(e.model, peaked, {"D": True}, stable=True, warn=False)
     # Levenberg-Marquardt on the support from the l2,1 model: no worse on the data.
-    assert res.refit.vnls <= res.entry.vnls * (1 + 1e-9)
-    assert res.final is res.refit_entry and res.model is res.refit.model
-    assert res.refit_entry.n_groups == res.entry.n_groups
+    assert fit.vnls <= e.vnls * (1 + 1e-9)
+    assert fit.model.group_norms().count() == e.n_groups
     # the dropped groups are exactly zero and held there
-    for x, kept in res.entry.nonzero_groups.items():
-        coef = getattr(res.model, x)
+    for x, kept in e.nonzero_groups.items():
+        coef = getattr(fit.model, x)
         for i in range(1, coef.shape[0]):
             if i not in kept:
                 assert np.all(coef[i] == 0)
-    assert "refit on the support" in res.summary()
+                assert np.all(held[lpvid.fixed_mask(fit.model, {x: [i]})])
+
+
+def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
+    # Without validation data nothing judges a refit: the path's model is returned.
+    res = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True, gammas=[0.1])
+    assert res.refit is None and not res.refitted and res.model is res.entry.model
+    assert res.final is res.entry and "not refitted" in res.reason
     cov = res.covariance
     assert cov is not None and cov.model is res.model
     held = lpvid.fixed_mask(res.model, {"D": True})
-    assert np.all(cov.theta[held] == 0)
-    no = lpvid.identify(peaked, 1, BASIS, fixed={"D": True}, stable=True, gammas=[0.1], refit=False)
+    assert np.all(cov.theta[held] == 0)  # linearised on the support of the model returned
+    # With validation data the refit is run and judged on them.
+    seen = {True: 0, False: 0}
+    for seed in range(4):
+        val = _peaked_at([1 / 6, 1 / 2, 5 / 6], seed + 10)
+        res = lpvid.identify(
+            peaked, 1, BASIS, validation=val, fixed={"D": True}, stable=True, gammas=[0.1]
+        )
+        e, r = res.entry, res.refit_entry
+        assert res.refit is not None and r is not None
+        better = res.refit.converged and r.validation_vnls < (1 - 1e-3) * e.validation_vnls
+        assert res.refitted == better
+        seen[better] += 1
+        assert res.final.validation_vnls <= e.validation_vnls
+        assert lpvid.vnls(res.model, val) == res.final.validation_vnls
+        assert ("refitted on the support" in res.reason) == better
+        assert res.covariance.model is res.model and res.stability.stable
+        line = [x for x in res.summary().splitlines() if x.startswith("refit on the support")]
+        assert line and line[0].endswith("; kept" if better else "the path's model returned")
+    no = lpvid.identify(
+        peaked, 1, BASIS, validation=val, fixed={"D": True}, stable=True, gammas=[0.1], refit=False
+    )
     assert no.refit is None and no.model is no.entry.model and no.final is no.entry
-    assert no.covariance is not None
+    assert no.covariance is not None and "refit=False" in no.reason

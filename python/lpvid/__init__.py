@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, initial, plots, readers, report, trust
+from lpvid import datasets, initial, judge, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -86,6 +86,7 @@ __all__ = [
     "initial",
     "initial_candidates",
     "initial_states",
+    "judge",
     "l21_path",
     "multisine",
     "order_hints",

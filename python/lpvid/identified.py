@@ -68,11 +68,14 @@ class IdentifyResult:
     Attributes
     ----------
     model : LpvModel
-        The chosen model (refitted on its support when ``refit``; see :attr:`refit`).
+        The model of the chosen entry, or its refit on the support when
+        validation data show that the refit interpolates better
+        (:attr:`refitted`; see :func:`lpvid.trust.refit.judged_refit`).
+        It never validates worse than the chosen entry.
     chosen : int
-        Its index in :attr:`entries`.
+        The chosen entry's index in :attr:`entries`.
     reason : str
-        Why it was chosen.
+        Why it was chosen, and whether it was refitted.
     entries : list of PathEntry
         The unregularised model (gamma = 0) and the model kept at every
         gamma of the l2,1 path, with V_NLS, groups kept and timings.
@@ -105,9 +108,11 @@ class IdentifyResult:
     refit : FitResult or None
         The chosen model refitted by Levenberg-Marquardt with its dropped
         groups fixed at zero (``identify(..., refit=True)``, for a chosen
-        gamma > 0); :attr:`model` is then the refitted model.
+        gamma > 0 and with validation data), kept or not.
     refit_entry : PathEntry or None
-        V_NLS (and validation V_NLS) of the refitted model.
+        V_NLS (and validation V_NLS) of that refit.
+    refitted : bool
+        Whether :attr:`model` is the refit.
     covariance : Covariance or None
         First-order parameter covariance of :attr:`model` (dropped groups
         and fixed parameters held): FRF bands through
@@ -135,6 +140,7 @@ class IdentifyResult:
     time_data: TimeCost | None = None
     refit: FitResult | None = None
     refit_entry: PathEntry | None = None
+    refitted: bool = False
     covariance: Covariance | None = None
     stability: StabilityReport | None = None
 
@@ -145,8 +151,8 @@ class IdentifyResult:
 
     @property
     def final(self) -> PathEntry:
-        """The entry of :attr:`model`: the refit when there is one, else the chosen entry."""
-        return self.refit_entry if self.refit_entry is not None else self.entry
+        """The entry of :attr:`model`: the refit when it was kept, else the chosen entry."""
+        return self.refit_entry if self.refitted and self.refit_entry is not None else self.entry
 
     def table(self) -> str:
         """The accuracy-versus-simplicity table, the chosen model marked."""
@@ -194,7 +200,9 @@ class IdentifyResult:
                 f"V_NLS = {e.validation_vnls:.6g} on validation data (noise floor "
                 f"{e.validation_floor}, ratio {e.validation_vnls / e.validation_floor:.3f})"
             )
-        lines += trust_lines(self.entry, self.refit_entry, self.covariance, self.stability)
+        lines += trust_lines(
+            self.entry, self.refit_entry, self.refitted, self.covariance, self.stability
+        )
         lines.append(f"time: {self.timings.get('total_s', float('nan')):.2f} s")
         return "\n".join(lines)
 

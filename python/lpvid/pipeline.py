@@ -26,12 +26,13 @@ from lpvid.identified import IdentifyResult, PathEntry, path_entry
 from lpvid.initial.candidates import ROUTES, initial_candidates
 from lpvid.initial.choice import choose
 from lpvid.initial.local import identify_lti
+from lpvid.judge import identify_range, noise_slack, tied
 from lpvid.layout import strictly_proper
 from lpvid.pathfit import run_path
 from lpvid.results import PathResult
 from lpvid.settings import L21Settings
 from lpvid.timecost import check_time_data
-from lpvid.trust.steps import finish, identify_range, stable_fit
+from lpvid.trust.steps import finish, stable_fit
 
 __all__ = [
     "DEFAULT_GAMMAS",
@@ -82,22 +83,30 @@ def check_gammas(gammas: Sequence[float] | None) -> NDArray[np.float64]:
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
     """The knee of V_NLS against the number of groups (no validation data).
 
-    With the curve normalised to the unit square (groups kept on x, V_NLS
-    on y, falling from the simplest model to the richest), the knee is the
-    point farthest below the chord between the two ends: where adding
-    groups stops buying accuracy. When the whole curve lies within the
-    noise (the spread of V_NLS is below two standard deviations of the
-    noise floor, ``2 sqrt(M)``), the simplest model is as good as any.
+    Each number of groups is represented by its most regularised entry
+    among those whose V_NLS ties with the lowest for that number
+    (:func:`lpvid.judge.tied`): further down the path, fits with the same
+    groups differ by less than the noise at the data and by the slide of
+    the groups' sizes between the points. With the curve normalised to the
+    unit square (groups kept on x, V_NLS on y, falling from the simplest
+    model to the richest), the knee is the point farthest below the chord
+    between the two ends: where adding groups stops buying accuracy. When
+    the whole curve lies within the noise (the spread of V_NLS is within
+    :func:`lpvid.judge.noise_slack`), the simplest model is as good as any.
     """
+    floor = entries[0].noise_floor
     by_groups: dict[int, int] = {}
-    for k, e in enumerate(entries):
-        if e.n_groups not in by_groups or e.vnls < entries[by_groups[e.n_groups]].vnls:
-            by_groups[e.n_groups] = k
+    for g in sorted({e.n_groups for e in entries}):
+        same = [k for k, e in enumerate(entries) if e.n_groups == g]
+        flags = tied([entries[k].vnls for k in same], floor)
+        by_groups[g] = max(
+            (k for k, f in zip(same, flags, strict=True) if f),
+            key=lambda k: (entries[k].gamma, -k),
+        )
     ks = [by_groups[g] for g in sorted(by_groups)]
     x = np.array([entries[k].n_groups for k in ks], dtype=float)
     y = np.array([entries[k].vnls for k in ks])
-    floor = entries[0].noise_floor
-    if len(ks) == 1 or y.max() - y.min() < 2 * np.sqrt(floor):
+    if len(ks) == 1 or y.max() - y.min() <= noise_slack(floor):
         k = ks[0]
         return k, (
             "no validation data; every model on the path fits within the noise "
@@ -153,20 +162,26 @@ def identify(
        points, the lowest validation V_NLS (identification V_NLS without
        validation data), the simpler on a near tie.
     3. The reweighted l2,1 path over ``gammas`` from the refined start
-       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first),
-       kept from trading away interpolation when the data leave directions
-       flat (one scheduling point per coefficient matrix): with
-       ``validation``, a fit that validates more than ``tolerance`` above
-       the best so far is also tried with its steps kept off the flat
-       directions (``fit_l21(..., pinned=True)``) and the better one kept;
-       without, every fit is pinned (see :mod:`lpvid.pathfit`).
+       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first).
+       With ``validation`` data and one scheduling point per coefficient
+       matrix (directions flat at the data), a fit that validates more than
+       ``tolerance`` above the best so far is also tried with its steps
+       kept off the flat directions (``fit_l21(..., pinned=True)``) and the
+       better one kept (see :mod:`lpvid.pathfit`).
     4. A choice among the unregularised model and the path: with
        ``validation`` data, the simplest model whose validation V_NLS is
        within ``tolerance`` of the best; without, the knee of the
-       accuracy-versus-number-of-groups curve.
-    5. With ``refit``, the chosen model refitted on its support (dropped
-       groups fixed at zero), its parameter covariance, and the stability
-       of its frozen models over the scheduling range.
+       accuracy-versus-number-of-groups curve, each number of groups
+       represented by its most regularised fit within the noise of the
+       best with that number.
+    5. With ``refit`` and validation data, the chosen model refitted on
+       its support (dropped groups fixed at zero), kept only when it
+       validates better (:func:`lpvid.trust.refit.judged_refit`: without
+       validation data nothing can judge it, and on systems with a known
+       truth it interpolated worse); then the parameter covariance of the
+       model returned (linearised on its support) and the stability of its
+       frozen models over the scheduling range. ``reason`` says whether the
+       model was refitted.
 
     With ``time_data`` (records along a varying scheduling trajectory),
     steps 1-2 use the FRF data alone; the chosen start is then refined on
@@ -216,9 +231,10 @@ def identify(
         active stability constraint, rejected cone steps would stop their
         simplification.)
     refit : bool
-        Refit the chosen model by Levenberg-Marquardt with its dropped
-        groups fixed at zero (removes the shrinkage of the l2,1 penalty);
-        :attr:`IdentifyResult.model` is then the refitted model.
+        With validation data, refit the chosen model by Levenberg-Marquardt
+        with its dropped groups fixed at zero (removes the shrinkage of the
+        l2,1 penalty) and return the refit when it validates better
+        (:attr:`IdentifyResult.refitted`). False: never refit.
 
     Returns
     -------
@@ -322,7 +338,20 @@ def identify(
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)
     e = entries[chosen]
-    done = finish(e.model, e.gamma, data, fixed, l21.threshold, refit, stable, p_range, time_cost)
+    done = finish(
+        e.model,
+        e.gamma,
+        data,
+        fixed,
+        l21.threshold,
+        validation=validation,
+        validation_vnls=e.validation_vnls,
+        do_refit=refit,
+        stable=stable,
+        p_range=p_range,
+        time_data=time_cost,
+    )
+    reason = f"{reason}; {done.note}"
     refit_entry = (
         None
         if done.refit is None
@@ -347,6 +376,7 @@ def identify(
         time_data=time_cost,
         refit=done.refit,
         refit_entry=refit_entry,
+        refitted=done.refitted,
         covariance=done.covariance,
         stability=done.stability,
     )

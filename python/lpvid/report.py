@@ -52,6 +52,7 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
             for p in result.entries
         ],
         "timings": result.timings,
+        "refitted": result.refitted,
         "vnls_before_refit": result.entry.vnls,
         "validation_vnls_before_refit": result.entry.validation_vnls,
         "covariance_rank": None if result.covariance is None else result.covariance.rank,
@@ -138,7 +139,7 @@ def _trust(result: IdentifyResult) -> list[str]:
     """The report's section on the refit, the covariance and stability over the range."""
     lines = ["## Between the points: uncertainty and stability", ""]
     if result.refit_entry is not None:
-        lines.append(f"- {refit_line(result.entry, result.refit_entry)}")
+        lines.append(f"- {refit_line(result.entry, result.refit_entry, result.refitted)}")
     c = result.covariance
     if c is not None:
         lines.append(

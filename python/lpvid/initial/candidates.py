@@ -34,6 +34,7 @@ from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
 from lpvid.initial.race import Runner, Stage, race
 from lpvid.initial.smile import smile_candidates
+from lpvid.judge import dependence
 from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
@@ -80,6 +81,10 @@ class Candidate:
         :func:`lpvid.frozen.frozen_stable`). An LPV model that fits the
         points but has unstable frozen models between them is usually
         interpolating mismatched local models.
+    dependence : float
+        The refined model's scheduling dependence (the sum of its groups'
+        relative magnitudes, :meth:`lpvid.groups.GroupNorms.dependence`):
+        among candidates that fit equally well, the smaller the simpler.
     note : str
         What was done, in words.
     fit : FitResult or None
@@ -103,6 +108,7 @@ class Candidate:
     seconds: float
     constant_groups: int
     stable: bool = True
+    dependence: float = 0.0
     note: str = ""
     fit: FitResult | None = None
     start: LpvModel | None = None
@@ -159,6 +165,7 @@ def _candidate(
         seconds=runner.seconds + seconds,
         constant_groups=int(const),
         stable=frozen_stable(model, between_points(data.p)),
+        dependence=dependence(model, data),
         note=note,
         fit=fit,
         start=start,

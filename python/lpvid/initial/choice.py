@@ -8,6 +8,7 @@ import numpy as np
 
 from lpvid._checks import positive_float
 from lpvid.initial.candidates import Candidate
+from lpvid.judge import noise_slack, simplest, tied
 
 __all__ = ["choose"]
 
@@ -24,13 +25,18 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
 
     With validation data (every candidate has ``validation_vnls``): the
     lowest validation V_NLS; candidates within ``tolerance`` of it count
-    as equal and the simplest of them (most constant groups), then the
-    one with the lowest validation V_NLS, wins.
+    as equal and the simplest of them wins: the least scheduling dependence
+    (:attr:`Candidate.dependence`, the sum of the relative group
+    magnitudes), then the lowest validation V_NLS (:func:`lpvid.judge.simplest`).
 
-    Without: the lowest identification V_NLS, where candidates within two
-    standard deviations of the noise floor (``2 sqrt(M)``, M the number of
-    residuals) of the best count as equal and the simplest wins, then the
-    lowest V_NLS.
+    Without: the lowest identification V_NLS, where candidates within the
+    noise of the best count as equal (:func:`lpvid.judge.tied`: two
+    standard deviations of V_NLS, ``2 sqrt(M)``, M the number of
+    residuals) and the simplest wins as above. Candidates that fit the
+    points equally well can differ wildly between them (with about as many
+    parameters as the frozen FRFs determine, the unregularised model is not
+    fixed between the points); the one that depends least on the scheduling
+    is the one the l2,1 path can simplify, and the smoothest guess.
 
     Parameters
     ----------
@@ -66,30 +72,29 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
     if all(c.validation_vnls is not None for c in pool):
         vals = {id(c): float(c.validation_vnls) for c in pool}  # type: ignore[arg-type]
         best = min(vals.values())
-        tied = [c for c in pool if vals[id(c)] <= (1 + tol) * best]
-        pick = min(tied, key=lambda c: (-c.constant_groups, vals[id(c)]))
+        ties = [c for c in pool if vals[id(c)] <= (1 + tol) * best]
+        pick = ties[simplest([c.dependence for c in ties], [vals[id(c)] for c in ties])]
         reason = (
             f"lowest validation V_NLS ({vals[id(pick)]:.5g}, "
             f"{pick.validation_ratio:.3f} x its noise floor){among}"
         )
-        if len(tied) > 1:
+        if len(ties) > 1:
             reason += (
-                f"; {len(tied)} candidates within {tol:.0%} of the best validation V_NLS, "
-                f"the simplest ({pick.constant_groups} constant groups) kept"
+                f"; {len(ties)} candidates within {tol:.0%} of the best validation V_NLS, "
+                f"the simplest (scheduling dependence {pick.dependence:.3g}) kept"
             )
         return pick, reason
     floor = pool[0].noise_floor
-    best_v = min(c.vnls for c in pool)
-    slack = 2.0 * np.sqrt(floor)
-    tied = [c for c in pool if c.vnls <= best_v + slack]
-    pick = min(tied, key=lambda c: (-c.constant_groups, c.vnls))
+    flags = tied([c.vnls for c in pool], floor)
+    ties = [c for c, f in zip(pool, flags, strict=True) if f] or pool
+    pick = ties[simplest([c.dependence for c in ties], [c.vnls for c in ties])]
     reason = (
         f"no validation data; lowest identification V_NLS ({pick.vnls:.5g}, "
         f"{pick.ratio:.3f} x the noise floor){among}"
     )
-    if len(tied) > 1:
+    if len(ties) > 1:
         reason += (
-            f"; {len(tied)} candidates within 2 sqrt(M) = {slack:.3g} of the best, "
-            f"the simplest ({pick.constant_groups} constant groups) kept"
+            f"; {len(ties)} candidates within {noise_slack(floor):.3g} (2 sqrt(M)) of the "
+            f"best, the simplest (scheduling dependence {pick.dependence:.3g}) kept"
         )
     return pick, reason

@@ -25,6 +25,7 @@ from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.frozen import frozen_stable
+from lpvid.judge import dependence, tied
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
@@ -177,14 +178,26 @@ class Runner:
 
 def _rank(
     runners: Sequence[Runner], data: FrfData, validation: FrfData | None
-) -> list[tuple[bool, float, int]]:
-    """Sort keys: unstable between the points last, then the (validation) V_NLS."""
+) -> list[tuple[bool, bool, float, float, int]]:
+    """Sort keys: unstable between the points last, then the (validation) V_NLS.
+
+    Runners whose V_NLS ties with the best stable one's (within the noise,
+    :func:`lpvid.judge.tied`) come first, the one with the least scheduling
+    dependence (:func:`lpvid.judge.dependence`) ahead.
+    """
     between = between_points(data.p)
+    judge = validation if validation is not None else data
+    costs, unstable = [], []
+    for r in runners:
+        cost = vnls(r.model, validation) if validation is not None else r.current_vnls(data)
+        costs.append(cost if np.isfinite(cost) else math.inf)
+        unstable.append(not frozen_stable(r.model, between))
+    stable_costs = [c if not u else math.inf for c, u in zip(costs, unstable, strict=True)]
+    ties = tied(stable_costs if not all(unstable) else costs, judge.n_residuals)
     keys = []
     for k, r in enumerate(runners):
-        cost = vnls(r.model, validation) if validation is not None else r.current_vnls(data)
-        unstable = not frozen_stable(r.model, between)
-        keys.append((unstable, cost if np.isfinite(cost) else math.inf, k))
+        dep = dependence(r.model, data) if ties[k] else costs[k]
+        keys.append((unstable[k], not ties[k], dep, costs[k], k))
     return keys
 
 
@@ -249,10 +262,10 @@ def race(
             if step is not None:
                 step(r)
         keys = sorted(_rank(alive, data, validation))
-        finite = [k for k in keys if math.isfinite(k[1])] or keys
+        finite = [k for k in keys if math.isfinite(k[3])] or keys
         counted = entered if round_ == 0 else alive  # the hopeless count in the first round
         n_keep = max(keep, math.ceil(len(counted) / 2))
-        stay = {k[2] for k in finite[:n_keep]}
+        stay = {k[-1] for k in finite[:n_keep]}
         for k, r in enumerate(alive):
             if k not in stay and not r.done:
                 r.dropped = r.steps

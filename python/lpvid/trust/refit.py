@@ -5,23 +5,37 @@ regularised estimate is biased. Refitting V_NLS by Levenberg-Marquardt
 with the dropped groups fixed at exactly zero keeps the structure the path
 found and removes the bias; its first-order covariance
 (:func:`lpvid.covariance`) is then that of an ordinary least-squares fit.
+
+The shrinkage is also what holds the directions the data barely see in
+place: with about as many parameters as the frozen FRFs determine, the
+refit lowers V_NLS by a fraction of the noise and slides the model between
+the points. :func:`judged_refit` (what :func:`lpvid.identify` does) keeps
+a refit only where validation data show that it interpolates better.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_float
+from lpvid.cost import vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls
 from lpvid.layout import MATRICES, fixed_mask
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
+from lpvid.settings import FTOL
 
-__all__ = ["dropped_mask", "refit"]
+__all__ = ["REFIT_MARGIN", "Judged", "dropped_mask", "judged_refit", "refit"]
+
+#: A refit replaces the l2,1 model only when its validation V_NLS is lower
+#: by more than this fraction: a near-tie keeps the l2,1 model, whatever the
+#: last bits say.
+REFIT_MARGIN = 1e-3
 
 
 def dropped_mask(model: LpvModel, threshold: float = 1e-6, p_range: Any = None) -> NDArray:
@@ -100,3 +114,95 @@ def refit(
     start = model.with_theta(np.where(dropped_mask(model, threshold, p_range), 0.0, model.theta))
     fit = fit_nls(start, data, held, stable=stable, p_range=p_range, **options)
     return fit, held
+
+
+@dataclass
+class Judged:
+    """What :func:`judged_refit` decided.
+
+    Attributes
+    ----------
+    model : LpvModel
+        The model to return: the refit when it was kept, else the given one.
+    fit : FitResult or None
+        The refit, kept or not (None when none was run).
+    kept : bool
+        Whether :attr:`model` is the refit.
+    held : ndarray of bool
+        The parameters held fixed in the model returned: the given fixed
+        ones and the dropped groups.
+    note : str
+        Why, in words.
+    """
+
+    model: LpvModel
+    fit: FitResult | None
+    kept: bool
+    held: NDArray[np.bool_]
+    note: str
+
+
+def judged_refit(
+    model: LpvModel,
+    data: FrfData,
+    validation: FrfData | None,
+    fixed: Any = None,
+    *,
+    validation_vnls: float | None = None,
+    threshold: float = 1e-6,
+    p_range: Any = None,
+    **options: Any,
+) -> Judged:
+    """Refit ``model`` on its support, and keep the refit only where it validates better.
+
+    - Without validation data the refit is not run: nothing can tell
+      whether it interpolates better, and measured on systems with a known
+      truth (``benches/bench_between.py``) it interpolated worse in nearly
+      every case, also when stopped early or when judged on held-out
+      scheduling points;
+    - with them, the refit (Levenberg-Marquardt with the dropped groups
+      fixed at zero, ended by :data:`lpvid.settings.FTOL` like every other
+      fit of :func:`lpvid.identify`) replaces ``model`` only when it
+      converged and its validation V_NLS is lower than ``model``'s by more
+      than :data:`REFIT_MARGIN`.
+
+    Parameters
+    ----------
+    model : LpvModel
+        The l2,1 model chosen on the path.
+    data, validation : FrfData, FrfData or None
+        Identification and validation data.
+    fixed : optional
+        Parameters fixed in the fit (as in :func:`lpvid.fixed_mask`).
+    validation_vnls : float, optional
+        ``model``'s validation V_NLS, when already known.
+    threshold : float
+        Relative magnitude at or below which a group counts as dropped.
+    p_range : optional
+        Scheduling range of the group magnitudes (and of ``stable``).
+    **options
+        Further keywords of :func:`refit` (``stable``, ``time_data``, ...).
+
+    Returns
+    -------
+    Judged
+    """
+    dropped = fixed_mask(model, fixed) | dropped_mask(model, threshold, p_range)
+    if validation is None:
+        note = (
+            "not refitted: without validation data nothing tells whether a refit on the "
+            "support interpolates better (lpvid.refit runs it)"
+        )
+        return Judged(model, None, False, dropped, note)
+    options.setdefault("ftol", FTOL)
+    fit, held = refit(model, data, fixed, threshold=threshold, p_range=p_range, **options)
+    before = vnls(model, validation) if validation_vnls is None else float(validation_vnls)
+    after = vnls(fit.model, validation)
+    change = f"validation V_NLS {before:.6g} -> {after:.6g}"
+    if not fit.converged:
+        note = f"the refit on the support stopped at its step limit ({change}); not kept"
+    elif np.isfinite(after) and after < (1.0 - REFIT_MARGIN) * before:
+        return Judged(fit.model, fit, True, held, f"refitted on the support ({change})")
+    else:
+        note = f"the refit on the support validated no better ({change}); not kept"
+    return Judged(model, fit, False, dropped, note)

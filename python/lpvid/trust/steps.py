@@ -15,15 +15,10 @@ from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.trust.covariance import Covariance, covariance
 from lpvid.trust.enforce import STABLE_TOL, stabilised
-from lpvid.trust.refit import dropped_mask, refit
+from lpvid.trust.refit import Judged, dropped_mask, judged_refit, refit
 from lpvid.trust.stability import StabilityReport, format_p, stability
 
-__all__ = ["Finish", "finish", "identify_range", "stable_fit", "trust_lines"]
-
-
-def identify_range(model: LpvModel, data: FrfData) -> Any:
-    """The range the pipeline's stability statements cover: the model's, else the data's."""
-    return model.p_range if model.p_range is not None else data.p_range
+__all__ = ["Finish", "finish", "stable_fit", "trust_lines"]
 
 
 def stable_fit(
@@ -60,10 +55,30 @@ def stable_fit(
 
 @dataclass
 class Finish:
-    """What :func:`finish` adds to the chosen model."""
+    """What :func:`finish` adds to the chosen model.
+
+    Attributes
+    ----------
+    model : LpvModel
+        The model :func:`lpvid.identify` returns.
+    refit : FitResult or None
+        The refit on the support, kept or not (None when none was run).
+    refitted : bool
+        Whether :attr:`model` is that refit.
+    note : str
+        What was done about the refit, and why.
+    fixed : ndarray of bool
+        The parameters held in :attr:`model` (fixed ones and dropped groups).
+    covariance : Covariance
+        Of :attr:`model`, linearised on its support.
+    stability : StabilityReport
+        Of :attr:`model`'s frozen models over the range.
+    """
 
     model: LpvModel
     refit: FitResult | None
+    refitted: bool
+    note: str
     fixed: np.ndarray
     covariance: Covariance
     stability: StabilityReport
@@ -75,34 +90,42 @@ def finish(
     data: FrfData,
     fixed: Any,
     threshold: float,
-    do_refit: bool,
-    stable: bool,
-    p_range: Any,
+    *,
+    validation: FrfData | None = None,
+    validation_vnls: float | None = None,
+    do_refit: bool = True,
+    stable: bool = False,
+    p_range: Any = None,
     time_data: Any = None,
 ) -> Finish:
-    """Refit the chosen model on its support (for gamma > 0), its covariance and stability.
+    """The returned model (for gamma > 0 the judged refit), its covariance and stability.
 
-    With ``time_data`` the refit minimises the sum of the FRF and time costs;
-    the covariance is that of the FRF fit alone.
+    The refit on the support is run and kept as :func:`lpvid.trust.refit.judged_refit`
+    decides (with ``time_data`` it minimises the sum of the FRF and time
+    costs). The covariance (that of the FRF fit alone) and the stability
+    report describe the model returned, linearised on its support.
 
-    Warns (:class:`lpvid.ConvergenceWarning`) when the final model has
-    unstable frozen models on the range.
+    Warns (:class:`lpvid.ConvergenceWarning`) when that model has unstable
+    frozen models on the range.
     """
-    refitted = None
     if do_refit and gamma > 0:
-        refitted, held = refit(
+        judged = judged_refit(
             model,
             data,
+            validation,
             fixed,
+            validation_vnls=validation_vnls,
             threshold=threshold,
             p_range=p_range,
             stable=stable,
             warn=False,
             time_data=time_data,
         )
-        model = refitted.model
     else:
         held = fixed_mask(model, fixed) | dropped_mask(model, threshold, p_range)
+        why = "unregularised model chosen" if gamma == 0 else "refit=False"
+        judged = Judged(model, None, False, held, f"not refitted ({why})")
+    model = judged.model
     report = stability(model, p_range, quadratic=False)
     if not report.stable:
         warnings.warn(
@@ -114,14 +137,16 @@ def finish(
         )
     return Finish(
         model=model,
-        refit=refitted,
-        fixed=held,
-        covariance=covariance(model, data, held, warn=False),
+        refit=judged.fit,
+        refitted=judged.kept,
+        note=judged.note,
+        fixed=judged.held,
+        covariance=covariance(model, data, judged.held, warn=False),
         stability=report,
     )
 
 
-def refit_line(entry: Any, refit_entry: Any) -> str:
+def refit_line(entry: Any, refit_entry: Any, kept: bool) -> str:
     """One line on the refit: V_NLS (and validation V_NLS) of the path entry and of its refit."""
     line = (
         f"refit on the support (dropped groups fixed at zero): V_NLS {entry.vnls:.6g} -> "
@@ -130,16 +155,20 @@ def refit_line(entry: Any, refit_entry: Any) -> str:
     before, after = entry.validation_vnls, refit_entry.validation_vnls
     if before is not None and after is not None:
         line += f"; validation V_NLS {before:.6g} -> {after:.6g}"
-    return line
+    return line + ("; kept" if kept else "; not kept, the path's model returned")
 
 
 def trust_lines(
-    entry: Any, refit_entry: Any, cov: Covariance | None, report: StabilityReport | None
+    entry: Any,
+    refit_entry: Any,
+    kept: bool,
+    cov: Covariance | None,
+    report: StabilityReport | None,
 ) -> list[str]:
     """Summary lines of :meth:`lpvid.IdentifyResult.summary` on the refit, covariance, stability."""
     lines = []
     if refit_entry is not None:
-        lines.append(refit_line(entry, refit_entry))
+        lines.append(refit_line(entry, refit_entry, kept))
     if cov is not None and cov.n_unidentified:
         lines.append(
             f"covariance: rank {cov.rank}; {cov.n_unidentified} parameter direction(s) leave "
