@@ -62,6 +62,14 @@ def test_the_readme_manifest_round_trip(tmp_path, gantry_data):
     ] * 2 + ["variance records"] * 2
 
 
+def refused(path, message):
+    """A manifest of one point, the file ``path`` of a 2 x 1 system, fails with ``message``."""
+    header = 'outputs = ["head", "carriage"]\ninputs = ["torque"]'
+    manifest = write_manifest(path.parent / "m.toml", header, [(0, path.name)])
+    with pytest.raises(ValueError, match=message):
+        lpvid.FrfData.from_files(manifest)
+
+
 # ------------------------------------------------------------------ complex CSV cells
 @pytest.mark.parametrize("spelling", ["numpy", "matlab", "matlab-old", "spaced"])
 def test_complex_csv_cells(tmp_path, rng, spelling):
@@ -83,21 +91,17 @@ def test_complex_csv_cells(tmp_path, rng, spelling):
 
 
 def test_a_complex_cell_in_a_real_column_names_line_and_column(tmp_path):
-    path = write_csv(tmp_path / "a.csv", F, np.ones((F.size, 1, 1)) * (1 + 1j))
+    path = write_csv(tmp_path / "a.csv", F, np.ones((F.size, 2, 1)) * (1 + 1j))
     lines = path.read_text().splitlines()
     cells = lines[4].split(",")
     cells[1] = " 1+2i"
     lines[4] = ",".join(cells)
     path.write_text("\n".join(lines))
-    manifest = write_manifest(
-        tmp_path / "m.toml", 'outputs = ["y"]\ninputs = ["u"]', [(0, "a.csv")]
-    )
-    with pytest.raises(
-        ValueError,
-        match=r"^a.csv, line 5, column 'head/torque re \[m/s\^2/N m\]': a complex number where "
+    refused(
+        path,
+        r"^a.csv, line 5, column 'head/torque re \[m/s\^2/N m\]': a complex number where "
         r"a real one belongs: '1\+2i'",
-    ):
-        lpvid.FrfData.from_files(manifest)
+    )
 
 
 # ------------------------------------------------------------------ nothing matches
@@ -222,15 +226,11 @@ def test_a_uff_file_cut_inside_a_dataset_is_refused(tmp_path, binary):
     cut = (offsets[4] + offsets[5]) // 2
     path.write_bytes(data[:cut])
     last = data[:cut].count(b"\n") + 1
-    manifest = write_manifest(
-        tmp_path / "m.toml", 'outputs = ["head", "carriage"]\ninputs = ["torque"]', [(0, "a.uff")]
-    )
-    with pytest.raises(
-        ValueError,
-        match=rf"^a.uff: truncated: the file ends at line {last}, inside dataset 58 \(record 3, "
+    refused(
+        path,
+        rf"^a.uff: truncated: the file ends at line {last}, inside dataset 58 \(record 3, "
         rf"from line {lines[4]}\), before the line '    -1' that closes it",
-    ):
-        lpvid.FrfData.from_files(manifest)
+    )
 
 
 def test_a_uff_dataset_shorter_than_its_header_is_refused(tmp_path):
@@ -241,12 +241,8 @@ def test_a_uff_dataset_shorter_than_its_header_is_refused(tmp_path):
     # The second FRF record: 13 header lines after its '-1', then one line per value.
     del lines[marks[2] + 13 : marks[2] + 15]
     path.write_bytes(b"\n".join(lines))
-    manifest = write_manifest(
-        tmp_path / "m.toml", 'outputs = ["head", "carriage"]\ninputs = ["torque"]', [(0, "a.uff")]
-    )
-    with pytest.raises(
-        ValueError,
-        match=rf"^a.uff, record 2 \(dataset 58 from line {marks[2]}\): truncated: 9 values where "
+    refused(
+        path,
+        rf"^a.uff, record 2 \(dataset 58 from line {marks[2]}\): truncated: 9 values where "
         r"its header announces 11",
-    ):
-        lpvid.FrfData.from_files(manifest)
+    )
