@@ -221,25 +221,25 @@ def test_a_grid_over_two_parameters(tmp_path, rng):
         for x, want in zip("ABCD", model.at([a[i], b[j]]), strict=True):
             np.testing.assert_allclose(f[x][:, :, i, j], want, rtol=1e-14, atol=1e-14)
     # 5 values per parameter over the basis domain
-    f = loadmat(model.save_grid(tmp_path / "h.mat", 5))
+    f = loadmat(model.save_grid(tmp_path / "h.mat", count=5))
     assert f["A"].shape == (2, 2, 5, 5)
     np.testing.assert_array_equal(f["grid"][0, 1].ravel(), np.linspace(-1.0, 1.0, 5))
     assert sorted(f["SamplingGrid"].dtype.names) == ["p1", "p2"]
 
 
 @pytest.mark.parametrize(
-    "args, message",
+    "name, kwargs, message",
     [
-        (("g.npz",), r"^path: expected a .mat file, got 'g.npz'"),
-        (("g.mat", [0.0, 0.5, 0.5]), r"^grid: expected strictly increasing values"),
-        (("g.mat", [0.0, np.nan]), r"^grid: contains NaN or Inf"),
-        (("g.mat", 0), r"^grid: expected an integer >= 1, got 0"),
+        ("g.npz", {}, r"^path: expected a .mat file, got 'g.npz'"),
+        ("g.mat", {"grid": [0.0, 0.5, 0.5]}, r"^grid: expected strictly increasing values"),
+        ("g.mat", {"grid": [0.0, np.nan]}, r"^grid: contains NaN or Inf"),
+        ("g.mat", {"count": 0}, r"^count: expected an integer >= 1, got 0"),
     ],
 )
-def test_bad_grid(tmp_path, rng, args, message):
+def test_bad_grid(tmp_path, rng, name, kwargs, message):
     model = random_lpv(rng, n=2, r=1, l=1, nb=1, Ts=0.01)
     with pytest.raises(ValueError, match=message):
-        model.save_grid(tmp_path / args[0], *args[1:])
+        model.save_grid(tmp_path / name, **kwargs)
     assert not list(tmp_path.iterdir())  # nothing written
 
 

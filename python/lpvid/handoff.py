@@ -246,10 +246,10 @@ def to_control_lpv(
     )
 
 
-def _grid_axes(model: LpvModel, grid: Any) -> list[NDArray[np.float64]]:
+def _grid_axes(model: LpvModel, grid: Any, count: int) -> list[NDArray[np.float64]]:
     n_params = model.basis.n_params
-    if grid is None or isinstance(grid, int | np.integer):
-        count = GRID_POINTS if grid is None else positive_int(grid, "grid", minimum=1)
+    if grid is None:
+        count = positive_int(count, "count")
         if model.p_range is None:
             raise ValueError(
                 "grid: the model has no p_range to spread the grid over; give the grid values"
@@ -288,6 +288,7 @@ def save_grid(
     grid: Any = None,
     names: Any = None,
     *,
+    count: int = GRID_POINTS,
     inputs: Sequence[str] | None = None,
     outputs: Sequence[str] | None = None,
     parameters: Sequence[str] | None = None,
@@ -318,12 +319,14 @@ def save_grid(
     model : LpvModel
     path : str or path-like
         A ``.mat`` file, written whole or not at all.
-    grid : int, array_like or sequence of array_like, optional
+    grid : array_like or sequence of array_like, optional
         Strictly increasing scheduling values (one array per parameter for
-        several: a full grid); or a number of evenly spaced values per
-        parameter over ``model.p_range``; default :data:`GRID_POINTS` (21).
+        several: a full grid). Default: ``count`` evenly spaced values per
+        parameter over ``model.p_range``.
     names : FrfData or lpvid.datasets.Dataset, optional
         Where the names come from (see :func:`signal_names`).
+    count : int, optional
+        Values per parameter of the default grid (:data:`GRID_POINTS`, 21).
     inputs, outputs, parameters : sequence of str, optional
         Names that replace those of ``names``.
 
@@ -344,7 +347,7 @@ def save_grid(
     u_names, y_names, p_names = signal_names(
         model, names, inputs=inputs, outputs=outputs, parameters=parameters
     )
-    axes = _grid_axes(model, grid)
+    axes = _grid_axes(model, grid, count)
     mesh = np.meshgrid(*axes, indexing="ij")  # MATLAB's ndgrid
     shape = mesh[0].shape
     points = np.stack([m.ravel() for m in mesh], axis=1)

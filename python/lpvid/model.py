@@ -447,8 +447,9 @@ class LpvModel:
 
         MATLAB reads it without lpvid as a model array: ``s = load(path); sys
         = ss(s.A, s.B, s.C, s.D, s.Ts); sys.SamplingGrid = s.SamplingGrid``.
-        Layout, ``grid`` (default 21 values per parameter over ``p_range``),
-        ``names`` and ``options``: :func:`lpvid.handoff.save_grid`.
+        Layout, ``grid`` (default 21 values per parameter over ``p_range``;
+        ``count=`` sets the number), ``names`` and ``options``:
+        :func:`lpvid.handoff.save_grid`.
         """
         from lpvid.handoff import save_grid
 

@@ -135,7 +135,8 @@ def _delimiters(data: bytes) -> list[int]:
     at = data.find(_DELIMITER)
     while at != -1:
         end = at + len(_DELIMITER)
-        if end == len(data) or data[end] in b"\r\n" or data[end : at + 80] == b" " * (80 - 6):
+        padded = at + 80 < len(data) and data[end : at + 80] == b" " * (80 - len(_DELIMITER))
+        if end == len(data) or data[end] in b"\r\n" or padded:
             out.append(at)
         at = data.find(_DELIMITER, at + 1)
     return out
