@@ -54,8 +54,8 @@ def test_continuous_time_matches_the_zero_order_hold_sample_by_sample(rng):
     """python-control integrates the ODE (solve_ivp, inputs interpolated linearly
     between the given times); lpvid.simulate holds u and p over each sample and
     solves exactly. Given u and p constant over one sample per call, both solve
-    the same ODE: they agree to the solver's tolerance (DOP853, rtol 1e-12),
-    here 1e-9 of the output scale over 40 samples."""
+    the same ODE: they agree to the solver's tolerance (DOP853, rtol 1e-12);
+    4e-16 of the output scale was measured, 1e-11 is asked over 40 samples."""
     model = random_lpv(rng, n=3, r=2, l=2, nb=2, Ts=None)
     dt = 0.05
     u, p = trajectory(rng, 40, 2, dt)
@@ -76,7 +76,7 @@ def test_continuous_time_matches_the_zero_order_hold_sample_by_sample(rng):
         y_ctrl.append(resp.outputs[:, 0])
         x = resp.states[:, -1]
     y = model.simulate(u, p, x0, dt=dt)
-    assert np.max(np.abs(np.array(y_ctrl) - y)) <= 1e-9 * np.max(np.abs(y))
+    assert np.max(np.abs(np.array(y_ctrl) - y)) <= 1e-11 * np.max(np.abs(y))
 
 
 def test_a_gain_scheduled_state_feedback_is_the_frozen_closed_loop(rng):
