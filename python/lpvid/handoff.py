@@ -213,18 +213,20 @@ def to_control_lpv(
     n, r, l, _ = model.shape
     coef = _stacked(model)
     one_param = model.basis.n_params == 1
-    last: list[Any] = [None, None]  # the scheduling value of the last call and its matrix
+    # The last scheduling value and its matrix, replaced as one pair (threads may share it).
+    last: list[tuple[bytes, NDArray[np.float64]] | None] = [None]
 
     def frozen(t: float, v: NDArray[np.float64]) -> NDArray[np.float64]:
         p = v[r:]
-        key = p.tobytes()
-        if key != last[0]:
-            if not np.all(np.isfinite(p)):
-                raise ValueError(f"p: the scheduling input is {p.tolist()} at t = {t:g}")
-            psi = model.basis_values(p if one_param else p[None, :])[0]
-            last[1] = (coef[0] + psi @ coef[1:]).reshape(n + l, n + r)
-            last[0] = key
-        return last[1]
+        key, hit = p.tobytes(), last[0]
+        if hit is not None and hit[0] == key:
+            return hit[1]
+        if not np.all(np.isfinite(p)):
+            raise ValueError(f"p: the scheduling input is {p.tolist()} at t = {t:g}")
+        psi = model.basis_values(p if one_param else p[None, :])[0]
+        matrix = (coef[0] + psi @ coef[1:]).reshape(n + l, n + r)
+        last[0] = (key, matrix)
+        return matrix
 
     def update(t: float, x: Any, v: Any, params: Any) -> NDArray[np.float64]:
         v = np.asarray(v, dtype=np.float64)
