@@ -2,19 +2,30 @@
 
 Each writes what an analyzer or MATLAB would, from arrays of one point:
 freqs (F,), G (F, l, r), and optionally coherence or variance (F, l, r).
+The files are written by pyuff, numpy and scipy.io, never by lpvid.
+:func:`write_readme_files` writes the files the README's manifest names.
 """
 
 from __future__ import annotations
 
+import re
+import sys
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 OUT_NODES = (3, 2)  # UFF response nodes of the outputs (direction +X)
 IN_NODES = (1, 4)  # UFF reference nodes of the inputs (direction +Z)
 OUTPUTS = ("head", "carriage")
 INPUTS = ("torque", "force")
+README_AVERAGES = 20  # the averages of the README's coherence
 
 
 def write_uff(
@@ -27,12 +38,16 @@ def write_uff(
     func_type: int = 4,
     units: tuple[str, str] = ("m/s^2", "N m"),
     drop: tuple[int, int] | None = None,
+    rows: tuple[int, ...] | None = None,
 ) -> Path:
-    """One UFF file, per pair (output-major) an FRF record, then its coherence record."""
+    """One UFF file, per pair (output-major) an FRF record, then its coherence record.
+
+    ``rows``: only these outputs (an analyzer's one file per channel pair).
+    """
     import pyuff
 
     sets = []
-    for i in range(G.shape[1]):
+    for i in range(G.shape[1]) if rows is None else rows:
         for j in range(G.shape[2]):
             if drop == (i, j):
                 continue
@@ -125,6 +140,7 @@ def write_mat(
     variance: np.ndarray | None = None,
     unit: str | None = "rad/s",
     struct: bool = True,
+    outputs: tuple[str, ...] = OUTPUTS,
 ) -> Path:
     """frd/idfrd data as MATLAB saves struct(sys): ResponseData l x r x F, Frequency, ..."""
     from scipy.io import savemat
@@ -138,7 +154,7 @@ def write_mat(
     fields["Ts"] = 0.0 if Ts is None else Ts
     fields["TimeUnit"] = "seconds"
     names = np.empty((l, 1), dtype=object)
-    names[:, 0] = OUTPUTS[:l]
+    names[:, 0] = outputs[:l]
     fields["OutputName"] = names
     names = np.empty((r, 1), dtype=object)
     names[:, 0] = INPUTS[:r]
@@ -148,6 +164,54 @@ def write_mat(
         cov[..., 0, 0] = cov[..., 1, 1] = np.transpose(variance, (1, 2, 0)) / 2
         fields["CovarianceData"] = cov
     savemat(path, {"sys": fields} if struct else fields)
+    return path
+
+
+def write_complex_csv(
+    path: Path,
+    freqs: np.ndarray,
+    G: np.ndarray,
+    *,
+    spelling: str = "numpy",
+    labels: tuple[str, ...] = OUTPUTS,
+    variance: np.ndarray | None = None,
+) -> Path:
+    """A CSV table with one complex column per pair, as numpy or MATLAB writes it.
+
+    ``spelling``: ``"numpy"`` is ``np.savetxt`` of a complex array with the
+    header as its comment line (every column complex, ``(50+0j)``);
+    ``"matlab"`` is ``fprintf('%.17g%+.17gi')`` (``1-2i``), ``"matlab-old"``
+    writematrix before R2020b (``1+-2i``), ``"spaced"`` ``1 - 2i``.
+    """
+    header = ["freq [Hz]"]
+    columns = [np.asarray(freqs, dtype=complex)]
+    for i in range(G.shape[1]):
+        for j in range(G.shape[2]):
+            label = f"{labels[i]}/{INPUTS[j]}"
+            header.append(f"{label} frf [m/s^2/N m]")
+            columns.append(G[:, i, j])
+            if variance is not None:
+                header.append(f"{label} var")
+                columns.append(variance[:, i, j].astype(complex))
+    if spelling == "numpy":
+        np.savetxt(path, np.stack(columns, axis=1), delimiter=",", header=", ".join(header))
+        return path
+
+    def cell(z: complex, real: bool) -> str:
+        if real:
+            return f"{z.real:.17g}"
+        if spelling == "matlab":
+            return f"{z.real:.17g}{z.imag:+.17g}i"
+        if spelling == "matlab-old":
+            return f"{z.real:.17g}+{z.imag:.17g}i"
+        return f"{z.real:.17g} {'-' if z.imag < 0 else '+'} {abs(z.imag):.17g}i"
+
+    real = [not h.split(" [")[0].endswith("frf") for h in header]
+    rows = [
+        ",".join(cell(c[k], r) for c, r in zip(columns, real, strict=True))
+        for k in range(len(freqs))
+    ]
+    path.write_text(",".join(header) + "\n" + "\n".join(rows) + "\n")
     return path
 
 
@@ -170,3 +234,50 @@ def write_manifest(path: Path, header: str, points: list[tuple[object, object]])
 def coherence_for(G: np.ndarray, sigma: np.ndarray, averages: int) -> np.ndarray:
     """The coherence whose Bendat-Piersol sigma is the given one (inverse of the formula)."""
     return 1.0 / (1.0 + averages * sigma**2 / np.abs(G) ** 2)
+
+
+def readme_manifest() -> str:
+    """The README's example manifest (its first TOML block)."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    return re.search(r"```toml\n(# gantry.toml\n.*?)```", readme, re.S).group(1)
+
+
+def write_readme_files(folder: Path, text: str, data: Any) -> dict[str, Any]:
+    """Every file the manifest names, from the data at its p, as its comments describe it.
+
+    Records are written carriage first wherever the format allows, so that
+    matching by order instead of by node or label would swap the outputs.
+    """
+    doc = tomllib.loads(text)
+    labels = [out.get("label", out["name"]) for out in doc["outputs"]]
+    coh = coherence_for(data.G, data.sigma, README_AVERAGES)
+    swap = [1, 0]
+    for point in doc["points"]:
+        q = int(np.flatnonzero(data.p == point["p"])[0])
+        files = point.get("files") or [point["file"]]
+        g, var = data.G[q], data.sigma[q] ** 2
+        for name in files:
+            path = folder / name
+            if name.endswith(".uff"):
+                if len(files) == 1:
+                    rows = (1, 0)
+                else:  # one file per channel pair, named after the output
+                    rows = (0,) if "head" in name else (1,)
+                write_uff(path, data.freqs_hz, g, coherence=coh[q], rows=rows, binary=q % 2 == 1)
+            elif name.endswith(".csv"):
+                out = tuple(labels[i] for i in swap)
+                write_complex_csv(
+                    path, data.freqs_hz, g[:, swap], labels=out, variance=var[:, swap]
+                )
+            else:
+                own = {o["name"]: o["label"] for o in point["outputs"]}
+                out = tuple(own[doc["outputs"][i]["name"]] for i in swap)
+                write_mat(
+                    path,
+                    data.freqs_hz,
+                    g[:, swap],
+                    Ts=data.Ts,
+                    variance=var[:, swap],
+                    outputs=out,
+                )
+    return doc

@@ -1,9 +1,7 @@
 """Measured FRFs from files: UFF 58, CSV and MATLAB structs load to the arrays they hold."""
 
 import json
-import re
 import textwrap
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -86,16 +84,11 @@ def test_uff_ascii_and_binary_load_the_gantry_data(tmp_path, gantry):
     assert prov["points"][0]["sigma"] == f"coherence, {AVERAGES} averages"
 
 
-def documented_manifests():
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    yield re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+def test_the_docstring_manifest_loads(tmp_path, gantry):
+    """The example of FrfData.from_files (the README's: test_mixed_files.py)."""
     doc = lpvid.FrfData.from_files.__doc__
     block = doc.split("Example::\n", 1)[1].split("\n\n        Top-level keys")[0]
-    yield textwrap.dedent(block)
-
-
-@pytest.mark.parametrize("text", list(documented_manifests()), ids=["README", "docstring"])
-def test_the_documented_manifests_load(tmp_path, gantry, text):
+    text = textwrap.dedent(block)
     data = gantry.identification.subset([0, 1])
     coh = coherence_for(data.G, data.sigma, AVERAGES)
     for q, p in enumerate(data.p):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from frf_files import coherence_for, write_uff
+from frf_files import readme_manifest, write_readme_files
 
 import lpvid
 
@@ -69,21 +69,19 @@ def test_readme_has_examples_with_stated_outputs():
 
 
 def write_measured_files(folder: Path, text: str) -> None:
-    """The README's manifest and the UFF files it lists (the gantry's first two points)."""
-    data = lpvid.datasets.gantry().identification.subset([0, 1])
-    coh = coherence_for(data.G, data.sigma, 20)
-    for q, p in enumerate(data.p):
-        write_uff(folder / f"tube{int(p)}.uff", data.freqs_hz, data.G[q], coherence=coh[q])
+    """The README's manifest and the files it lists (the gantry's data at its points)."""
+    write_readme_files(folder, text, lpvid.datasets.gantry().identification)
     (folder / "gantry.toml").write_text(text)
 
 
 def test_readme_python_examples_run_and_print_what_they_state(tmp_path, monkeypatch):
     pytest.importorskip("pyuff")  # the measured-files example reads UFF
+    pytest.importorskip("control")  # the hand-off example schedules a gain with it
     # the examples write model.json and my-report/ into the working directory
     # and read gantry.toml from it
     monkeypatch.chdir(tmp_path)
     text = README.read_text()
-    write_measured_files(tmp_path, re.search(r"```toml\n(.*?)```", text, re.S).group(1))
+    write_measured_files(tmp_path, readme_manifest())
     namespace: dict[str, object] = {}
     exec(PRELUDE, namespace)
     checked = 0

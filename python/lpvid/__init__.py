@@ -6,7 +6,7 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
-from lpvid import datasets, initial, judge, plots, readers, report, trust
+from lpvid import datasets, handoff, initial, judge, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.cost import residual, vnls
@@ -81,6 +81,7 @@ __all__ = [
     "fixed_mask",
     "free_mask",
     "global_start",
+    "handoff",
     "identify",
     "identify_lti",
     "initial",

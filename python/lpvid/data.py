@@ -402,7 +402,10 @@ class FrfData:
         Top-level keys: ``outputs`` and ``inputs`` (required: names, or
         tables with ``name`` and optionally ``label``, ``node``, ``dir``,
         ``unit``), ``points`` (required: tables with ``p`` and ``file`` or
-        ``files``, optionally ``sigma``, ``format``, ``variable``), ``Ts``,
+        ``files``, optionally ``sigma``, ``format``, ``variable``,
+        ``records``, and ``outputs``/``inputs``: tables with ``name`` and
+        any of ``label``, ``node``, ``dir`` that say anew how this point's
+        files name the channel), ``Ts``,
         ``parameters``, ``records``, ``sigma``, ``format``, ``variable``,
         ``description`` (free text). Unknown keys are errors.
 
@@ -412,8 +415,10 @@ class FrfData:
         - UFF dataset 58, ASCII or binary (needs ``pip install "lpvid[uff]"``):
           FRF records (function type 4) and coherence records (type 6);
           units from the ordinate numerator/denominator unit labels, the
-          frequency unit from the abscissa unit label (Hz when absent).
-        - CSV: ``freq [Hz]``, then per pair ``OUT/IN re [unit]`` and
+          frequency unit from the abscissa unit label (Hz when absent); a
+          truncated file is refused, naming the dataset and its line.
+        - CSV: ``freq [Hz]``, then per pair ``OUT/IN frf [unit]`` (complex
+          cells, ``(1+2j)`` or ``1+2i``), or ``OUT/IN re [unit]`` and
           ``OUT/IN im [unit]``, or ``OUT/IN mag [unit]`` (or ``db``) and
           ``OUT/IN phase [deg]``; optional ``OUT/IN coh`` and ``OUT/IN var``
           (see :mod:`lpvid.readers.table`).
@@ -428,10 +433,12 @@ class FrfData:
         records of a point's files in file order are (y1,u1), (y1,u2), ...
         (``"output-major"``) or (y1,u1), (y2,u1), ... (``"input-major"``),
         and every one must be an FRF (MATLAB data are placed by position);
-        by ``"labels"``, the UFF node (and direction) when ``node`` is
-        given, else the file's label (UFF entity name, CSV ``OUT/IN``,
-        MATLAB ``OutputName``/``InputName``) equal to ``label`` (default:
-        the name).
+        by ``"labels"``, in each file's own terms: in UFF files the node
+        (and direction) when ``node`` is given, else the entity name; in
+        CSV and MATLAB files the label (CSV ``OUT/IN``, MATLAB
+        ``OutputName``/``InputName``); labels equal to ``label`` (default:
+        the name). When no record matches, the error lists per file what
+        was looked for and what the file holds.
 
         sigma (``sigma = {...}`` at the top for every point, or per point;
         without it sigma is 1): ``{ from = "coherence", averages = n }``

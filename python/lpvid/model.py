@@ -425,6 +425,36 @@ class LpvModel:
         A, B, C, D = self.at(p)
         return control.ss(A, B, C, D, 0 if self.Ts is None else self.Ts)
 
+    def to_control_lpv(self, names: Any = None, **options: Any) -> Any:
+        """The LPV model as a python-control ``NonlinearIOSystem``, inputs ``u`` then ``p``.
+
+        Discrete or continuous time as the model is; ``control.input_output_response``
+        simulates it along ``p(t)`` and ``control.create_statefbk_iosystem(...,
+        gainsched_indices=...)`` schedules a gain on it. Needs python-control
+        (``pip install "lpvid[control]"``). ``names``: an FrfData read from
+        files or a built-in data set, whose labels name the signals;
+        ``options``: ``inputs``, ``outputs``, ``parameters``, ``full_state``,
+        ``name`` (see :func:`lpvid.handoff.to_control_lpv`).
+        """
+        from lpvid.handoff import to_control_lpv
+
+        return to_control_lpv(self, names, **options)
+
+    def save_grid(
+        self, path: str | os.PathLike[str], grid: Any = None, names: Any = None, **options: Any
+    ) -> Path:
+        """Write the frozen A, B, C, D on a grid of scheduling values to a MATLAB file.
+
+        MATLAB reads it without lpvid as a model array: ``s = load(path); sys
+        = ss(s.A, s.B, s.C, s.D, s.Ts); sys.SamplingGrid = s.SamplingGrid``.
+        Layout, ``grid`` (default 21 values per parameter over ``p_range``;
+        ``count=`` sets the number), ``names`` and ``options``:
+        :func:`lpvid.handoff.save_grid`.
+        """
+        from lpvid.handoff import save_grid
+
+        return save_grid(self, path, grid, names, **options)
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LpvModel):
             return NotImplemented

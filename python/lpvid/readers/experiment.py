@@ -124,7 +124,7 @@ def read_experiment(manifest: str | os.PathLike[str], *, lines: str = "same") ->
         if pt.sigma is not None and pt.sigma.source in (COHERENCE, VARIANCE):
             kinds.append(pt.sigma.source)
         files = ", ".join(path.name for path in pt.files)
-        grids = select_records(records, m.outputs, m.inputs, m.records, kinds, files)
+        grids = select_records(records, pt.outputs, pt.inputs, pt.records, kinds, files)
         for kind, grid in grids.items():
             for i in range(l):
                 for j in range(r):

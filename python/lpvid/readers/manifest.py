@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +40,10 @@ _TOP_KEYS = {
     "variable",
     "points",
 }
-_POINT_KEYS = {"p", "file", "files", "sigma", "format", "variable"}
+_POINT_KEYS = {"p", "file", "files", "sigma", "format", "variable", "records", "outputs", "inputs"}
 _CHANNEL_KEYS = {"name", "label", "node", "dir", "unit"}
+#: What a point may say anew about how its files name a channel.
+_NAMING_KEYS = ("label", "node", "dir")
 
 
 @dataclass(frozen=True)
@@ -49,8 +51,10 @@ class ChannelSpec:
     """An output or input as the manifest names it.
 
     ``label``, ``node`` and ``direction`` say how the files name it (used
-    when ``records = "labels"``); ``unit`` is checked against the units the
-    files state.
+    when ``records = "labels"``: ``node`` and ``direction`` in files with
+    nodes (UFF), ``label``, by default ``name``, in the others and in UFF
+    files when no node is given); ``unit`` is checked against the units
+    the files state.
     """
 
     name: str
@@ -71,7 +75,11 @@ class SigmaSpec:
 
 @dataclass(frozen=True)
 class PointSpec:
-    """One scheduling point: its value, its files and how to read them."""
+    """One scheduling point: its value, its files and how to read them.
+
+    ``records``, ``outputs`` and ``inputs`` are those of the manifest with
+    this point's own ``records`` and channel naming put in.
+    """
 
     index: int
     p: tuple[float, ...]
@@ -79,6 +87,9 @@ class PointSpec:
     sigma: SigmaSpec | None
     formats: tuple[str, ...]
     variable: str | None
+    records: str
+    outputs: tuple[ChannelSpec, ...]
+    inputs: tuple[ChannelSpec, ...]
 
 
 @dataclass(frozen=True)
@@ -127,9 +138,7 @@ def read_manifest(path: Any) -> Manifest:
         ts = _positive(ts, f"{where}: Ts")
     outputs = _channels(doc, "outputs", where)
     inputs = _channels(doc, "inputs", where)
-    records = doc.get("records", "output-major")
-    if records not in RECORD_ORDERS:
-        raise FileError(f"{where}: records: expected one of {RECORD_ORDERS}, got {records!r}")
+    records = _records(doc.get("records", "output-major"), f"{where}: records")
     default_sigma = _sigma(doc.get("sigma"), f"{where}: sigma")
     default_format = _format(doc.get("format"), f"{where}: format")
     default_variable = _text(doc.get("variable"), f"{where}: variable")
@@ -152,7 +161,10 @@ def read_manifest(path: Any) -> Manifest:
         formats = tuple(fmt or _format_of(f, at) for f in files)
         sigma = _sigma(raw["sigma"], f"{at}.sigma") if "sigma" in raw else default_sigma
         variable = _text(raw.get("variable"), f"{at}.variable") or default_variable
-        points.append(PointSpec(q, p, files, sigma, formats, variable))
+        mode = _records(raw["records"], f"{at}.records") if "records" in raw else records
+        outs = _overrides(raw, "outputs", outputs, at)
+        ins = _overrides(raw, "inputs", inputs, at)
+        points.append(PointSpec(q, p, files, sigma, formats, variable, mode, outs, ins))
     sizes = {len(pt.p) for pt in points}
     if len(sizes) > 1:
         q = next(pt.index for pt in points if len(pt.p) != len(points[0].p))
@@ -171,6 +183,12 @@ def read_manifest(path: Any) -> Manifest:
             )
         parameters = tuple(parameters)
     return Manifest(mpath, ts, parameters, outputs, inputs, records, tuple(points))
+
+
+def _records(value: Any, where: str) -> str:
+    if value not in RECORD_ORDERS:
+        raise FileError(f"{where}: expected one of {RECORD_ORDERS}, got {value!r}")
+    return str(value)
 
 
 def _no_unknown(table: dict[str, Any], known: set[str], where: str) -> None:
@@ -298,16 +316,54 @@ def _channels(doc: dict[str, Any], key: str, where: str) -> tuple[ChannelSpec, .
         name = _text(item.get("name"), f"{at}.name")
         if name is None:
             raise FileError(f"{at}.name: missing")
-        node = item.get("node")
-        if node is not None and (isinstance(node, bool) or not isinstance(node, int)):
-            raise FileError(f"{at}.node: expected an integer node number, got {node!r}")
-        direction = parse_direction(item["dir"], f"{at}.dir") if "dir" in item else None
-        if direction is not None and node is None:
-            raise FileError(f"{at}.dir: needs node as well")
-        label = _text(item.get("label"), f"{at}.label")
         unit = _text(item.get("unit"), f"{at}.unit")
-        out.append(ChannelSpec(name, label, node, direction, unit))
+        out.append(_naming(ChannelSpec(name, unit=unit), item, at))
     names = [c.name for c in out]
     if len(set(names)) != len(names):
         raise FileError(f"{where}: {key}: names must differ, got {names}")
     return tuple(out)
+
+
+def _naming(spec: ChannelSpec, item: dict[str, Any], at: str) -> ChannelSpec:
+    """``spec`` with the ``label``, ``node`` and ``dir`` that ``item`` gives."""
+    node = item.get("node", spec.node)
+    if node is not None and (isinstance(node, bool) or not isinstance(node, int)):
+        raise FileError(f"{at}.node: expected an integer node number, got {node!r}")
+    direction = spec.direction
+    if "dir" in item:
+        direction = parse_direction(item["dir"], f"{at}.dir")
+    if direction is not None and node is None:
+        raise FileError(f"{at}.dir: needs node as well")
+    label = _text(item.get("label"), f"{at}.label") if "label" in item else spec.label
+    return replace(spec, label=label, node=node, direction=direction)
+
+
+def _overrides(
+    raw: dict[str, Any], key: str, channels: tuple[ChannelSpec, ...], at: str
+) -> tuple[ChannelSpec, ...]:
+    """The channels with a point's own naming of them (``[[points]]`` ``outputs``/``inputs``)."""
+    if key not in raw:
+        return channels
+    items = raw[key]
+    if not isinstance(items, list) or not items:
+        raise FileError(
+            f'{at}.{key}: expected a list of tables such as {{ name = "{channels[0].name}", '
+            'label = "..." }'
+        )
+    by_name = {c.name: c for c in channels}
+    seen: set[str] = set()
+    for i, item in enumerate(items):
+        where = f"{at}.{key}[{i}]"
+        if not isinstance(item, dict):
+            raise FileError(f"{where}: expected a table with name and label, node or dir")
+        _no_unknown(item, {"name", *_NAMING_KEYS}, where)
+        name = item.get("name")
+        if name not in by_name:
+            raise FileError(
+                f"{where}.name: expected one of the {key} {sorted(by_name)}, got {name!r}"
+            )
+        if name in seen:
+            raise FileError(f"{where}.name: {name!r} given twice for this point")
+        seen.add(name)
+        by_name[name] = _naming(by_name[name], item, where)
+    return tuple(by_name[c.name] for c in channels)

@@ -81,12 +81,14 @@ class Channel:
     index: int | None = None
 
     def describe(self) -> str:
-        """A short text for messages: ``'head' (node 3 +X)``."""
+        """A short text for messages: ``'head' node 3 +X``."""
         parts = []
         if self.label:
             parts.append(repr(self.label))
         if self.node is not None:
-            parts.append(f"node {self.node}{direction_name(self.direction)}")
+            parts.append(f"node {self.node}")
+            if self.direction:
+                parts.append(direction_name(self.direction))
         if self.index is not None:
             parts.append(f"#{self.index + 1}")
         return " ".join(parts) or "unlabelled"

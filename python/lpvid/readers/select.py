@@ -9,10 +9,16 @@ Two ways, as the manifest's ``records`` says:
   own. Records that carry their position (MATLAB ``ResponseData(i,j,:)``)
   are placed by it. Every function record must then be an FRF.
 - by labels (``"labels"``): the pair of output k and input m is the record
-  whose response matches output k and whose reference matches input m: the
-  UFF node (and direction) when the manifest gives ``node`` (and ``dir``),
-  else the file's label (UFF entity name, CSV ``OUTPUT/INPUT`` label,
-  MATLAB ``OutputName``/``InputName``) against ``label``, by default the name.
+  whose response matches output k and whose reference matches input m, in
+  the terms of the record's file: in a file with nodes (UFF), the node (and
+  direction) when the manifest gives ``node`` (and ``dir``); otherwise the
+  file's label (UFF entity name, CSV ``OUTPUT/INPUT`` label, MATLAB
+  ``OutputName``/``InputName``) against ``label``, by default the name. So
+  one manifest names its channels by node for UFF files and by label for
+  CSV and MATLAB files, at the same point or at different ones.
+
+When no record matches, the message lists, file by file, what was looked
+for and the records the file holds, in that file's terms.
 """
 
 from __future__ import annotations
@@ -20,7 +26,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from lpvid.readers.manifest import ChannelSpec
-from lpvid.readers.records import COHERENCE, FRF, VARIANCE, Channel, FileError, Record
+from lpvid.readers.records import (
+    COHERENCE,
+    FRF,
+    VARIANCE,
+    Channel,
+    FileError,
+    Record,
+    direction_name,
+)
 
 __all__ = ["select_records"]
 
@@ -119,20 +133,55 @@ def _checked(rec: Record | None) -> Record:
     return rec.checked()
 
 
+def _has_nodes(channel: Channel) -> bool:
+    return channel.node is not None
+
+
 def _matches(spec: ChannelSpec, channel: Channel) -> bool:
-    if spec.node is not None:
+    if _has_nodes(channel) and spec.node is not None:
         if channel.node != spec.node:
             return False
-        if spec.direction is not None and channel.direction != spec.direction:
-            return False
-    label = spec.label if spec.label is not None else (spec.name if spec.node is None else None)
-    return label is None or channel.label == label
+        return spec.direction is None or channel.direction == spec.direction
+    return channel.label == (spec.label if spec.label is not None else spec.name)
 
 
-def _describe(spec: ChannelSpec) -> str:
-    if spec.node is not None:
-        return Channel(spec.label, spec.node, spec.direction).describe()
-    return repr(spec.label if spec.label is not None else spec.name)
+def _sought(spec: ChannelSpec, nodes: bool) -> str:
+    """What identifies ``spec`` in a file with (``nodes``) or without nodes."""
+    if nodes and spec.node is not None:
+        return f"node {spec.node} {direction_name(spec.direction)}".strip()
+    label = spec.label if spec.label is not None else spec.name
+    return f"{'entity name' if nodes else 'label'} {label!r}"
+
+
+def _held(rec: Record) -> str:
+    """A record's pair as its file names it."""
+    out, inp = rec.response, rec.reference
+    if _has_nodes(out) or _has_nodes(inp):  # UFF: nodes, directions, entity names
+        return f"{out.describe()} / {inp.describe()} ({rec.name})"
+    if out.index is not None:  # MATLAB: OutputName / InputName at a position
+        return f"{out.label!r} / {inp.label!r} ({rec.name})"
+    return repr(f"{out.label or ''}/{inp.label or ''}")  # CSV: the OUT/IN column label
+
+
+def _no_match(
+    records: Sequence[Record], out: ChannelSpec, inp: ChannelSpec, kind: str, files: str
+) -> FileError:
+    what = "FRF" if kind == FRF else kind
+    per_file: dict[str, list[Record]] = {}
+    for rec in records:
+        per_file.setdefault(rec.file, []).append(rec)
+    parts = []
+    for file, recs in per_file.items():
+        nodes = any(_has_nodes(rec.response) for rec in recs)
+        held = [_held(rec) for rec in recs if rec.kind == kind]
+        holds = f"the {what} records {', '.join(held)}" if held else f"no {what} records"
+        parts.append(
+            f"{file} (looked for {_sought(out, nodes)} / {_sought(inp, nodes)}) holds {holds}"
+        )
+    return FileError(
+        f"{files}: no {what} record matches output {out.name!r} / input {inp.name!r}; "
+        + "; ".join(parts)
+    )
 
 
 def _by_labels(
@@ -152,31 +201,17 @@ def _by_labels(
                 if _matches(out, rec.response) and _matches(inp, rec.reference)
             ]
             same = [rec for rec in hits if rec.kind == kind]
-            what = "FRF" if kind == FRF else kind
-            pair = (
-                f"output {out.name!r} (file label {_describe(out)}) / input {inp.name!r} "
-                f"(file label {_describe(inp)})"
-            )
             if len(same) > 1:
+                what = "FRF" if kind == FRF else kind
                 raise FileError(
-                    f"{files}: {len(same)} {what} records for {pair}: "
-                    f"{', '.join(rec.name for rec in same)}"
+                    f"{files}: {len(same)} {what} records for output {out.name!r} / input "
+                    f"{inp.name!r}: {', '.join(rec.where for rec in same)}"
                 )
             if not same:
                 other = [rec for rec in hits if rec.kind not in _SIGMA_KINDS]
                 if kind == FRF and other:
                     raise _wrong_type(other[0], "labels")
-                have = sorted(
-                    {
-                        f"{rec.response.describe()} / {rec.reference.describe()}"
-                        for rec in records
-                        if rec.kind == kind
-                    }
-                )
-                raise FileError(
-                    f"{files}: missing {what} record for {pair}; the {what} records there are "
-                    f"{'; '.join(have) if have else 'none'}"
-                )
+                raise _no_match(records, out, inp, kind, files)
             row.append(same[0].checked())
         grid.append(row)
     return grid

@@ -8,7 +8,11 @@ frequency axis and its units labels. The parsing is done by ``pyuff``
 :class:`~lpvid.readers.records.Record`.
 
 Records are numbered as the datasets of the file, from 1 (a header dataset
-151 counts). Rounding: pyuff writes ordinates as ``E20.11`` (12 significant
+151 counts). A dataset runs from a line ``    -1`` to the next such line;
+a file that ends inside a dataset (an interrupted export or copy), or a
+dataset 58 with fewer values than its header announces, is refused as
+truncated with the dataset's number and line, never read as shorter.
+Rounding: pyuff writes ordinates as ``E20.11`` (12 significant
 digits) in ASCII and as IEEE doubles in binary, and abscissa values as
 ``E13.5`` (6 significant digits) in both.
 """
@@ -58,6 +62,8 @@ FUNCTION_TYPES = {
 #: Abscissa specific data types (record 8 field 1) that are a frequency axis.
 _FREQUENCY_AXES = {0: "unknown", 1: "general", 18: "frequency"}
 _AXIS_NAMES = {17: "time", 19: "rpm", 20: "order", 8: "displacement"}
+#: The line that opens and closes a dataset: six columns, "-1" right-aligned.
+_DELIMITER = b"    -1"
 
 
 def read_uff(path: Path) -> list[Record]:
@@ -88,6 +94,11 @@ def read_uff(path: Path) -> list[Record]:
         ) from exc
     name = path.name
     try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise FileError(f"{name}: cannot read the file ({exc})") from exc
+    starts = _set_lines(data, name)
+    try:
         uff = pyuff.UFF(str(path))
         types = [int(t) for t in uff.get_set_types()]
     except Exception as exc:  # pyuff raises bare Exception for everything
@@ -96,18 +107,57 @@ def read_uff(path: Path) -> list[Record]:
     for k, set_type in enumerate(types):
         if set_type != 58:
             continue
+        at = f"{name}, record {k + 1}"
         try:
             dset = uff.read_sets(k)
         except Exception as exc:  # pyuff raises bare Exception for everything
             raise FileError(
-                f"{name}, record {k + 1}: dataset 58 cannot be read ({exc}); a binary file "
+                f"{at} (line {starts[k]}): dataset 58 cannot be read ({exc}); a binary file "
                 "from some analyzers needs pyuff.fix_58b first"
             ) from exc
+        announced = dset.get("num_pts")
+        got = np.size(dset.get("data"))
+        if announced is not None and got != int(announced):
+            raise FileError(
+                f"{at} (dataset 58 from line {starts[k]}): truncated: {got} values where its "
+                f"header announces {int(announced)} (record 7, number of data values)"
+            )
         records.append(_record(dset, name, k + 1))
     if not records:
         found = f"datasets {sorted(set(types))}" if types else "no UFF datasets"
         raise FileError(f"{name}: no dataset 58 (function record) in the file ({found})")
     return records
+
+
+def _delimiters(data: bytes) -> list[int]:
+    """Byte offsets of the ``    -1`` lines that open and close datasets (pyuff's rule)."""
+    out = []
+    at = data.find(_DELIMITER)
+    while at != -1:
+        end = at + len(_DELIMITER)
+        padded = at + 80 < len(data) and data[end : at + 80] == b" " * (80 - len(_DELIMITER))
+        if end == len(data) or data[end] in b"\r\n" or padded:
+            out.append(at)
+        at = data.find(_DELIMITER, at + 1)
+    return out
+
+
+def _set_lines(data: bytes, name: str) -> list[int]:
+    """The line where each dataset starts; a FileError when the file ends inside one."""
+    marks = _delimiters(data)
+    lines = [data.count(b"\n", 0, at) + 1 for at in marks[::2]]
+    if len(marks) % 2:
+        start = marks[-1]
+        head = data[start:].splitlines()
+        kind = head[1][:6].decode("ascii", "replace").strip() if len(head) > 1 else ""
+        what = f"dataset {kind}" if kind.isdigit() else "a dataset"
+        last = data.count(b"\n") + (0 if data.endswith(b"\n") else 1)
+        raise FileError(
+            f"{name}: truncated: the file ends at line {last}, inside {what} (record "
+            f"{len(lines)}, from line {lines[-1]}), before the line '    -1' that closes it; "
+            "export or copy the file again"
+        )
+    return lines
 
 
 def _record(dset: dict[str, Any], file: str, number: int) -> Record:
