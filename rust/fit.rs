@@ -87,7 +87,7 @@ impl Stop {
             }
             Stop::Gradient => "converged: the gradient vanished",
             Stop::Weights => "converged: the reweighting weights stopped changing",
-            Stop::Settled => "converged: the groups in use and V_NLS settled",
+            Stop::Settled => "converged: the groups in use and the fit settled",
             Stop::MaxIterations => "stopped: iteration limit reached",
             Stop::Damping => {
                 "stopped: no damping gives a decrease (a local minimum or a numerical limit)"

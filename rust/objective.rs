@@ -38,4 +38,7 @@ pub trait Objective: Sync {
     fn cost(&self, theta: &[f64]) -> Result<f64>;
     /// Cost, gradient and `J^T J` at `theta` over the free parameters.
     fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton>;
+    /// The real weighted residual `r` at `theta` (`cost = r^T r`): how the
+    /// model responds at the data, in units of the noise.
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>>;
 }

@@ -369,4 +369,12 @@ impl Objective for Problem {
     fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
         Problem::gauss_newton(self, theta, free)
     }
+
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        Ok(self
+            .residual(theta)?
+            .iter()
+            .flat_map(|e| [e.re, e.im])
+            .collect())
+    }
 }

@@ -311,6 +311,10 @@ impl Objective for Stable<'_> {
         self.check(theta)?;
         self.inner.gauss_newton(theta, free)
     }
+
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.inner.response(theta)
+    }
 }
 
 #[cfg(test)]

@@ -45,6 +45,14 @@ impl Objective for Sum<'_> {
         self.parts.iter().map(|p| p.cost(theta)).sum()
     }
 
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        let mut out = Vec::new();
+        for part in &self.parts {
+            out.extend(part.response(theta)?);
+        }
+        Ok(out)
+    }
+
     fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
         let mut total = self.parts[0].gauss_newton(theta, free)?;
         for part in &self.parts[1..] {

@@ -2,7 +2,7 @@
 //! finite differences of the residual, on small random problems.
 
 use lpvid::testing::Lcg;
-use lpvid::{FreeSet, FrfData, Matrix, Problem, Shape};
+use lpvid::{FreeSet, FrfData, Matrix, Objective, Problem, Shape};
 use num_complex::Complex64 as C64;
 
 fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
@@ -55,6 +55,14 @@ fn check(n: usize, r: usize, l: usize, nb: usize, discrete: bool, mask: Option<V
     let r0 = real_residual(&p, &theta);
     let v0: f64 = r0.iter().map(|x| x * x).sum();
     assert!((gn.vnls - v0).abs() <= 1e-12 * v0);
+    // The response of the l2,1 fit's settled test: the same residual, real
+    // and imaginary parts interleaved.
+    let resp = Objective::response(&p, &theta).unwrap();
+    let e = p.residual(&theta).unwrap();
+    assert_eq!(resp.len(), 2 * e.len());
+    for (k, v) in e.iter().enumerate() {
+        assert_eq!((resp[2 * k], resp[2 * k + 1]), (v.re, v.im));
+    }
     // Explicit Jacobian by central differences, free columns only.
     let h = 1e-6;
     let cols: Vec<Vec<f64>> = free
@@ -204,4 +212,18 @@ fn gram_matches_the_rows_of_the_jacobian_more_outputs_than_inputs() {
 #[test]
 fn gram_matches_the_rows_of_the_jacobian_square() {
     check_against_rows(3, 2, 2, 2, false);
+}
+
+#[test]
+fn the_response_of_a_sum_is_that_of_its_parts_one_after_the_other() {
+    let (a, theta) = problem(2, 1, 2, 1, true);
+    let (b, _) = problem(2, 1, 2, 1, false);
+    let sum = lpvid::sum::Sum::new(vec![&a, &b]).unwrap();
+    let mut want = Objective::response(&a, &theta).unwrap();
+    want.extend(Objective::response(&b, &theta).unwrap());
+    let got = sum.response(&theta).unwrap();
+    assert_eq!(got, want);
+    let v: f64 = got.iter().map(|x| x * x).sum();
+    let cost = sum.cost(&theta).unwrap();
+    assert!((v - cost).abs() <= 1e-12 * cost);
 }

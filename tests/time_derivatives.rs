@@ -132,6 +132,10 @@ fn check_with(
     let v = problem.cost(&theta).unwrap();
     assert!((gn.vnls - v).abs() <= 1e-12 * v, "{} vs {v}", gn.vnls);
     assert_eq!(
+        Objective::response(&problem, &theta).unwrap(),
+        problem.residual(&theta).unwrap()
+    );
+    assert_eq!(
         problem.residual(&theta).unwrap().len(),
         problem.n_residuals()
     );

@@ -230,19 +230,22 @@ def one_group_lpv(seed: int = 0, n: int = 10) -> LpvModel:
     return LpvModel(A, only(B), only(C), np.zeros((3, 1, 1)), Polynomial(2, domain=(0.0, 1.0)))
 
 
-def crossing_lpv(n_params: int = 3, seed: int = 0) -> LpvModel:
+def crossing_lpv(
+    n_params: int = 3, seed: int = 0, modes: int = 5, damping: float = 0.02
+) -> LpvModel:
     """A known continuous-time MIMO model on several scheduling parameters with crossing modes.
 
-    10 states (5 modes, 2 % damping), 3 outputs x 2 inputs, ``D = 0``,
-    ``n_params`` (2 or 3) scheduling parameters on [0, 1] each, over
-    ``Polynomial(2, domain=[(0, 1)] * n_params)`` (every monomial of total
-    degree 1-2). In its own real modal coordinates: every mode's frequency
-    moves linearly with ``p1`` and two modes cross along it (18 -> 30 Hz
-    and 30 -> 18 Hz), the highest mode also moves with ``p2`` (quadratic);
-    the input shapes move linearly with ``p2``, and with 3 parameters the
-    output shapes move linearly with ``p3``. Written in random state
-    coordinates (a constant transformation), it uses 4 groups with two
-    parameters (A: s1, s2, s2^2; B: s2) and 5 with three (and C: s3).
+    ``2 modes`` states, 3 outputs x 2 inputs, ``D = 0``, ``n_params`` (2 or
+    3) scheduling parameters on [0, 1] each, over ``Polynomial(2,
+    domain=[(0, 1)] * n_params)`` (every monomial of total degree 1-2). In
+    its own real modal coordinates: every mode's frequency moves linearly
+    with ``p1`` and the first two cross along it (18 -> 30 Hz and 30 -> 18
+    Hz, equal at ``p1 = 0.5``); the third (45 Hz) also moves with ``p2``,
+    linearly and quadratically; the input shapes move linearly with
+    ``p2``, and with 3 parameters the output shapes move linearly with
+    ``p3``. Written in random state coordinates (a constant
+    transformation), it uses 4 groups with two parameters (A: s1, s2,
+    s2^2; B: s2) and 5 with three (and C: s3).
 
     Parameters
     ----------
@@ -250,6 +253,10 @@ def crossing_lpv(n_params: int = 3, seed: int = 0) -> LpvModel:
         2 or 3.
     seed : int
         Seed of the random state coordinates and shapes.
+    modes : int
+        Number of modes, 3 to 5 (the others at 9 and 70 Hz).
+    damping : float
+        Relative damping of every mode.
 
     Returns
     -------
@@ -259,33 +266,37 @@ def crossing_lpv(n_params: int = 3, seed: int = 0) -> LpvModel:
     --------
     >>> import lpvid.testing
     >>> m = lpvid.testing.crossing_lpv(3)
-    >>> m.n_outputs, m.n_inputs, m.basis.n_params, m.group_norms().count()
-    (3, 2, 3, 5)
+    >>> m.n_states, m.n_outputs, m.n_inputs, m.basis.n_params, m.group_norms().count()
+    (10, 3, 2, 3, 5)
 
     """
     n_params = positive_int(n_params, "n_params", minimum=2)
     if n_params > 3:
         raise ValueError(f"n_params: expected 2 or 3, got {n_params}")
+    modes = positive_int(modes, "modes", minimum=3)
+    if modes > 5:
+        raise ValueError(f"modes: expected 3 to 5, got {modes}")
+    zeta = positive_float(damping, "damping")
     rng = np.random.default_rng(seed)
     basis = Polynomial(2, domain=[(0.0, 1.0)] * n_params)
     names = basis.names
-    # Frequencies in Hz as polynomials in the scaled s in [-1, 1]: constant and
-    # per-monomial coefficients. Modes 1 and 2 cross along p1.
-    const = np.array([9.0, 24.0, 24.0, 45.0, 70.0])
-    lin1 = np.array([1.5, -6.0, 6.0, 3.0, -4.0])
-    coef = {"": const, "s1": lin1, "s2": np.array([0, 0, 0, 0, 5.0]), "s2^2": np.zeros(5)}
-    coef["s2^2"][4] = 3.0
-    n, l, r, nb = 10, 3, 2, len(names)
+    # Frequencies in Hz as polynomials in the scaled s in [-1, 1], per monomial.
+    const = np.array([24.0, 24.0, 45.0, 9.0, 70.0])[:modes]
+    coef = {
+        "s1": np.array([-6.0, 6.0, 3.0, 1.5, -4.0])[:modes],
+        "s2": np.array([0.0, 0.0, 5.0, 0.0, 0.0])[:modes],
+        "s2^2": np.array([0.0, 0.0, 3.0, 0.0, 0.0])[:modes],
+    }
+    n, l, r, nb = 2 * modes, 3, 2, len(names)
     T = np.eye(n) + 0.3 * rng.normal(size=(n, n))
     Ti = np.linalg.inv(T)
     A = np.zeros((nb + 1, n, n))
-    A[0] = _modal_blocks(const, 0.02)
+    A[0] = _modal_blocks(const, zeta)
     for name, c in coef.items():
-        if name:
-            A[1 + names.index(name)] = _modal_blocks(c, 0.02) - _modal_blocks(0 * c, 0.02)
+        A[1 + names.index(name)] = _modal_blocks(c, zeta)
     B = np.zeros((nb + 1, n, r))
-    B[0, 1::2] = rng.normal(size=(5, r)) * 2 * np.pi * 30
-    B[1 + names.index("s2"), 1::2] = 0.3 * rng.normal(size=(5, r)) * 2 * np.pi * 30
+    B[0, 1::2] = rng.normal(size=(modes, r)) * 2 * np.pi * 30
+    B[1 + names.index("s2"), 1::2] = 0.3 * rng.normal(size=(modes, r)) * 2 * np.pi * 30
     C = np.zeros((nb + 1, l, n))
     C[0] = rng.normal(size=(l, n))
     if n_params == 3:

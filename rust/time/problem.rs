@@ -350,4 +350,8 @@ impl Objective for TimeProblem {
     fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
         Ok(self.gauss_newton_timed(theta, free)?.0)
     }
+
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.residual(theta)
+    }
 }

@@ -13,111 +13,12 @@ use crate::fit::{
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
 use crate::objective::Objective;
-use crate::socp::{
-    jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned, DEFAULT_CONE_TOL,
-};
+use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned};
 use std::time::Instant;
 
-/// The reweighting rule (method.md (21)-(23)).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Weighting {
-    /// (23) with the scale (25): `phi = 1 / (||theta_i|| ||psi_i|| / ||theta_0|| + eps)`.
-    /// Groups whose `X(0)` is zero or fixed fall back to (22).
-    Relative,
-    /// (22): `phi = 1 / (||theta_i|| ||psi_i|| + eps)`, scale `||psi_i||`.
-    Scaled,
-    /// (21): `phi = 1 / (||theta_i|| + eps)`, scale 1.
-    Plain,
-}
+mod settings;
 
-/// Settings of [`fit_l21`].
-#[derive(Debug, Clone, Copy)]
-pub struct L21Settings {
-    /// Regularisation weight (normalised: multiplies the penalty next to `V_NLS / M`).
-    pub gamma: f64,
-    /// `eps` of the weights.
-    pub eps: f64,
-    /// The reweighting rule.
-    pub weighting: Weighting,
-    /// Inner loop stops when `||d|| <= dtheta_min (||theta_free|| + dtheta_min)`.
-    pub dtheta_min: f64,
-    /// Outer loop stops when `max_g |phi_g - phi_prev_g| / phi_prev_g <= dphi_min`.
-    pub dphi_min: f64,
-    /// Outer loop also stops when the groups in use stay the same and V_NLS
-    /// changes by at most `dvnls_min` (relative) over an outer iteration.
-    pub dvnls_min: f64,
-    /// Relative magnitude (23) above which a group counts as in use.
-    pub threshold: f64,
-    /// Accuracy of the cone solves (Clarabel's gap and feasibility tolerances).
-    pub cone_tol: f64,
-    /// Inner loop also stops when an accepted step lowers the objective by
-    /// less than `ftol` times its value (about `V_NLS / M`: the default
-    /// 1e-4 is far below the noise in `V_NLS / M`, `1 / sqrt(M)`).
-    pub ftol: f64,
-    /// Most outer (reweighting) iterations.
-    pub max_outer: usize,
-    /// Most cone steps per outer iteration. Few steps per reweighting work
-    /// best: long inner loops mostly slide along similarity transforms.
-    pub max_inner: usize,
-    /// Initial damping `lambda`.
-    pub lambda0: f64,
-}
-
-impl Default for L21Settings {
-    fn default() -> Self {
-        L21Settings {
-            gamma: 1e-3,
-            eps: 1e-3,
-            weighting: Weighting::Relative,
-            dtheta_min: 1e-6,
-            dphi_min: 1e-3,
-            dvnls_min: 1e-3,
-            threshold: 1e-6,
-            cone_tol: DEFAULT_CONE_TOL,
-            ftol: 1e-4,
-            max_outer: 20,
-            max_inner: 10,
-            lambda0: 1e-2,
-        }
-    }
-}
-
-impl L21Settings {
-    /// Check every field.
-    pub fn validate(&self) -> Result<()> {
-        for (name, v) in [
-            ("gamma", self.gamma),
-            ("dtheta_min", self.dtheta_min),
-            ("dphi_min", self.dphi_min),
-            ("dvnls_min", self.dvnls_min),
-            ("threshold", self.threshold),
-            ("ftol", self.ftol),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(invalid(
-                    name,
-                    format!("expected a finite number >= 0, got {v}"),
-                ));
-            }
-        }
-        for (name, v) in [
-            ("eps", self.eps),
-            ("lambda0", self.lambda0),
-            ("cone_tol", self.cone_tol),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(invalid(
-                    name,
-                    format!("expected a finite number > 0, got {v}"),
-                ));
-            }
-        }
-        if self.max_outer == 0 || self.max_inner == 0 {
-            return Err(invalid("max_outer", "iteration limits must be at least 1"));
-        }
-        Ok(())
-    }
-}
+pub use settings::{L21Settings, Weighting};
 
 /// A penalised group with what its weights need.
 #[derive(Debug, Clone)]
@@ -215,6 +116,19 @@ fn settled(magnitudes: &[f64], previous: &[f64], s: &L21Settings) -> bool {
     })
 }
 
+/// The fit has also settled when the groups in use are the same as at the
+/// last reweighting and the model's weighted response at the data moved by
+/// at most this much over it, in `sum |dG / sigma|^2`: less than the noise
+/// of a single residual, whatever V_NLS did (the other test, V_NLS changing
+/// by at most `dvnls_min`). What still moves then is a slide along state
+/// transformations that inflate `||theta_X(0)||` and so lower the relative
+/// magnitudes (25) of the kept groups, which the data do not see: on a
+/// one-group system at 6 points, `||A(0)||` 599 -> 1051 over five
+/// reweightings, V_NLS / M at 0.958 throughout and the response moving by
+/// 0.2-0.4 per reweighting, each V_NLS change near `dvnls_min` (a knife
+/// edge between stopping and sliding on to the iteration limit).
+const SETTLED_RESPONSE: f64 = 1.0;
+
 /// Algorithm 1: reweighted l2,1-regularised fit from `theta0`.
 ///
 /// `sup_norms[i-1]` is `||psi_i||_inf` over the scheduling range. With
@@ -255,7 +169,7 @@ pub fn fit_l21(
     let mut diag = marquardt_diagonal(&gn);
     let mut history = Vec::new();
     let mut prev_phi: Option<Vec<f64>> = None;
-    let mut prev_state: Option<(Vec<f64>, f64)> = None;
+    let mut prev_state: Option<(Vec<f64>, f64, Vec<f64>)> = None;
     let mut stop = Stop::MaxIterations;
     let mut groups = weigh(&specs, &theta, settings);
     let mut outer = 0;
@@ -286,15 +200,21 @@ pub fn fit_l21(
             .iter()
             .map(|g| g.varphi * g.norm_at(&theta))
             .collect();
-        if let Some((prev_mag, prev_v)) = &prev_state {
-            if settled(&magnitudes, prev_mag, settings)
-                && (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v
-            {
+        let response = problem.response(&theta)?;
+        if let Some((prev_mag, prev_v, prev_response)) = &prev_state {
+            let moved: f64 = response
+                .iter()
+                .zip(prev_response)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
+            let quiet = (prev_v - gn.vnls).abs() <= settings.dvnls_min * prev_v
+                || moved <= SETTLED_RESPONSE;
+            if settled(&magnitudes, prev_mag, settings) && quiet {
                 stop = Stop::Settled;
                 break;
             }
         }
-        prev_state = Some((magnitudes, gn.vnls));
+        prev_state = Some((magnitudes, gn.vnls, response));
         outer += 1;
         // Every reweighting starts from the initial damping (carrying it
         // over was measured: fewer rejected steps, but other models on the

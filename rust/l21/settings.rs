@@ -1,0 +1,106 @@
+//! Settings of the reweighted l2,1 fit ([`super::fit_l21`]), with their
+//! defaults and checks.
+
+use crate::error::{invalid, Result};
+use crate::socp::DEFAULT_CONE_TOL;
+
+/// The reweighting rule (method.md (21)-(23)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weighting {
+    /// (23) with the scale (25): `phi = 1 / (||theta_i|| ||psi_i|| / ||theta_0|| + eps)`.
+    /// Groups whose `X(0)` is zero or fixed fall back to (22).
+    Relative,
+    /// (22): `phi = 1 / (||theta_i|| ||psi_i|| + eps)`, scale `||psi_i||`.
+    Scaled,
+    /// (21): `phi = 1 / (||theta_i|| + eps)`, scale 1.
+    Plain,
+}
+
+/// Settings of [`fit_l21`].
+#[derive(Debug, Clone, Copy)]
+pub struct L21Settings {
+    /// Regularisation weight (normalised: multiplies the penalty next to `V_NLS / M`).
+    pub gamma: f64,
+    /// `eps` of the weights.
+    pub eps: f64,
+    /// The reweighting rule.
+    pub weighting: Weighting,
+    /// Inner loop stops when `||d|| <= dtheta_min (||theta_free|| + dtheta_min)`.
+    pub dtheta_min: f64,
+    /// Outer loop stops when `max_g |phi_g - phi_prev_g| / phi_prev_g <= dphi_min`.
+    pub dphi_min: f64,
+    /// Outer loop also stops when the groups in use stay the same and V_NLS
+    /// changes by at most `dvnls_min` (relative) over an outer iteration.
+    pub dvnls_min: f64,
+    /// Relative magnitude (23) above which a group counts as in use.
+    pub threshold: f64,
+    /// Accuracy of the cone solves (Clarabel's gap and feasibility tolerances).
+    pub cone_tol: f64,
+    /// Inner loop also stops when an accepted step lowers the objective by
+    /// less than `ftol` times its value (about `V_NLS / M`: the default
+    /// 1e-4 is far below the noise in `V_NLS / M`, `1 / sqrt(M)`).
+    pub ftol: f64,
+    /// Most outer (reweighting) iterations.
+    pub max_outer: usize,
+    /// Most cone steps per outer iteration. Few steps per reweighting work
+    /// best: long inner loops mostly slide along similarity transforms.
+    pub max_inner: usize,
+    /// Initial damping `lambda`.
+    pub lambda0: f64,
+}
+
+impl Default for L21Settings {
+    fn default() -> Self {
+        L21Settings {
+            gamma: 1e-3,
+            eps: 1e-3,
+            weighting: Weighting::Relative,
+            dtheta_min: 1e-6,
+            dphi_min: 1e-3,
+            dvnls_min: 1e-3,
+            threshold: 1e-6,
+            cone_tol: DEFAULT_CONE_TOL,
+            ftol: 1e-4,
+            max_outer: 20,
+            max_inner: 10,
+            lambda0: 1e-2,
+        }
+    }
+}
+
+impl L21Settings {
+    /// Check every field.
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("gamma", self.gamma),
+            ("dtheta_min", self.dtheta_min),
+            ("dphi_min", self.dphi_min),
+            ("dvnls_min", self.dvnls_min),
+            ("threshold", self.threshold),
+            ("ftol", self.ftol),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(
+                    name,
+                    format!("expected a finite number >= 0, got {v}"),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("eps", self.eps),
+            ("lambda0", self.lambda0),
+            ("cone_tol", self.cone_tol),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(
+                    name,
+                    format!("expected a finite number > 0, got {v}"),
+                ));
+            }
+        }
+        if self.max_outer == 0 || self.max_inner == 0 {
+            return Err(invalid("max_outer", "iteration limits must be at least 1"));
+        }
+        Ok(())
+    }
+}
