@@ -26,9 +26,9 @@ WEIGHTS = ("relative", "scaled", "plain")
 #: so such a step buys less than ``1e-4 M`` in V_NLS, far below the noise in
 #: V_NLS (``sqrt(M)``): what is left is the slow slide along nearly flat
 #: directions that the data do not see. (The refit of the chosen model runs
-#: to convergence: with one point per coefficient matrix that slide moves
-#: the model between the points, and on the gantry it changed the validation
-#: V_NLS of the refitted model by 10 %.)
+#: to convergence: stopped by this rule it validated worse on both built-in
+#: sets, the gantry 1.44 -> 1.59 times the floor; it is kept only where the
+#: validation data say it is better, :func:`lpvid.trust.refit.judged_refit`.)
 FTOL = 1e-4
 
 

@@ -28,7 +28,6 @@ from lpvid.fit import fit_nls
 from lpvid.layout import MATRICES, fixed_mask
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
-from lpvid.settings import FTOL
 
 __all__ = ["REFIT_MARGIN", "Judged", "dropped_mask", "judged_refit", "refit"]
 
@@ -161,10 +160,11 @@ def judged_refit(
       every case, also when stopped early or when judged on held-out
       scheduling points;
     - with them, the refit (Levenberg-Marquardt with the dropped groups
-      fixed at zero, ended by :data:`lpvid.settings.FTOL` like every other
-      fit of :func:`lpvid.identify`) replaces ``model`` only when it
-      converged and its validation V_NLS is lower than ``model``'s by more
-      than :data:`REFIT_MARGIN`.
+      fixed at zero, run to convergence or its step limit: stopped early by
+      :data:`lpvid.settings.FTOL` it validated worse on both built-in sets)
+      replaces ``model`` only when its validation V_NLS is lower than
+      ``model``'s by more than :data:`REFIT_MARGIN`; the note says when it
+      stopped at its step limit.
 
     Parameters
     ----------
@@ -194,15 +194,13 @@ def judged_refit(
             "support interpolates better (lpvid.refit runs it)"
         )
         return Judged(model, None, False, dropped, note)
-    options.setdefault("ftol", FTOL)
     fit, held = refit(model, data, fixed, threshold=threshold, p_range=p_range, **options)
     before = vnls(model, validation) if validation_vnls is None else float(validation_vnls)
     after = vnls(fit.model, validation)
     change = f"validation V_NLS {before:.6g} -> {after:.6g}"
     if not fit.converged:
-        note = f"the refit on the support stopped at its step limit ({change}); not kept"
-    elif np.isfinite(after) and after < (1.0 - REFIT_MARGIN) * before:
+        change += f"; it stopped at its step limit ({fit.n_iter} steps), not converged"
+    if np.isfinite(after) and after < (1.0 - REFIT_MARGIN) * before:
         return Judged(fit.model, fit, True, held, f"refitted on the support ({change})")
-    else:
-        note = f"the refit on the support validated no better ({change}); not kept"
+    note = f"the refit on the support validated no better ({change}); not kept"
     return Judged(model, fit, False, dropped, note)
