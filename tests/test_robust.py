@@ -360,6 +360,11 @@ def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
     pick, _ = initial.choose(raced)
     want, _ = initial.choose(full)
     assert pick.refined and pick.stable
+    # KNIFE EDGE (issue 31), the same as in the next test: the race ranks by
+    # validation V_NLS alone, choose prefers the simplest within 2 %. It held
+    # here under every BLAS kernel tried (OPENBLAS_CORETYPE SkylakeX, Haswell,
+    # Sandybridge, Nehalem), but only because the simpler starts happened to
+    # lead their rounds.
     assert pick.constant_groups == want.constant_groups
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= 1.02 * want.vnls
@@ -389,6 +394,21 @@ def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard)
     assert steps < sum(len(c.fit.history) for c in slow)
     pick, _ = initial.choose(quick)
     want, _ = initial.choose(slow)
+    # KNIFE EDGE (issue 31), a choice inside identify, left for the race's
+    # owner: the race (lpvid/initial/race.py, race() and _rank) drops the
+    # worse half of each round by validation V_NLS alone, while choose keeps
+    # the simplest (most constant groups) of the starts within 2 % of the
+    # best. Here most continuation starts end within 0.6 % of each other,
+    # some with 1 constant group and some with 0, so which of them survive a
+    # round of the slow race, and so the constant_groups of its pick, depend
+    # on the last bits: with numpy's OpenBLAS on its Haswell, Sandybridge or
+    # Nehalem kernels instead of SkylakeX the slow race dropped
+    # continuation+smile:controllability (1 group, 1.0001 x the best) and
+    # picked continuation+smile:modal (0 groups), 1 against 0. Ranking the
+    # race's rounds the way choose ranks (within 2 % of the best the simpler
+    # first) makes this test pass under all four kernels, with the same
+    # models on the built-in sets. .ci/run deselects the test in its
+    # perturbed flavour until then.
     assert pick.stable and pick.constant_groups == want.constant_groups
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
