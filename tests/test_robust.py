@@ -360,7 +360,10 @@ def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
     pick, _ = initial.choose(raced)
     want, _ = initial.choose(full)
     assert pick.refined and pick.stable
-    assert pick.constant_groups == want.constant_groups
+    # The race ranks its rounds as choose does (lpvid.judge: within 2 % of the
+    # best validation V_NLS the least scheduling dependence first), so the
+    # pick is as simple as that of full refinement whatever the last bits.
+    assert pick.dependence <= (1 + lpvid.judge.DEPENDENCE_TIE) * want.dependence
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= 1.02 * want.vnls
     # The pick refined the same way in both routes ends where it did.
@@ -389,7 +392,12 @@ def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard)
     assert steps < sum(len(c.fit.history) for c in slow)
     pick, _ = initial.choose(quick)
     want, _ = initial.choose(slow)
-    assert pick.stable and pick.constant_groups == want.constant_groups
+    # Issue 31: with numpy's OpenBLAS on its Haswell, Sandybridge or Nehalem
+    # kernels the slow race once dropped a start 1.0001 x the best, when it
+    # ranked its rounds by validation V_NLS alone; it ranks them as choose
+    # does now (lpvid.judge), and .ci/run runs this test on other numerics.
+    assert pick.stable
+    assert pick.dependence <= (1 + lpvid.judge.DEPENDENCE_TIE) * want.dependence
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
 

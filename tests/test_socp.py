@@ -124,18 +124,23 @@ def test_cone_step_matches_cvxpy(rng, gamma, fixed, resting):
     assert out["objective"] == pytest.approx(prob.value, rel=1e-6, abs=1e-9)
     step, reference = out["step"], e.value / scale
 
-    def objective_at(d_free):  # (27) at a step, written out in numpy
+    def objective_terms(d_free):  # the three terms of (27) at a step, written out in numpy
         full = theta.copy()
         full[idx] += d_free
         norms = [np.linalg.norm(full[sl]) for sl in group_slices(start)]
-        return g / M @ d_free + 0.5 * d_free @ P @ d_free + gamma * phi * varphi @ norms
+        return np.array([g / M @ d_free, 0.5 * d_free @ P @ d_free, gamma * phi * varphi @ norms])
 
     if resting:
         # Groups at the apex of their cones: the interior-point reference only
         # approaches the apex (its groups end near 1e-6, not at 0), the step
         # under test has them at zero and checked: at least as low an objective,
-        # and the same step to the reference's accuracy.
-        assert objective_at(step) <= objective_at(reference) + 1e-12
+        # to the accuracy both were solved to (relative gap 1e-10 of the size
+        # of the objective's terms; the objective is about -900 to -2000 here,
+        # and the reference's value moves by 2e-9 with numpy's BLAS kernels),
+        # and the same step to the reference's accuracy. A step that left out
+        # the C groups the solution needs lies 750-2000 above.
+        size = np.abs(objective_terms(reference)).sum()
+        assert objective_terms(step).sum() <= objective_terms(reference).sum() + 1e-10 * size
         assert np.linalg.norm(step - reference) <= 1e-5 * np.linalg.norm(reference)
     else:
         assert np.linalg.norm(step - reference) <= 1e-6 * np.linalg.norm(reference)

@@ -6,6 +6,11 @@ dependency with reweighted l2,1-norm regularisation (Turk, Gillis,
 Pipeleers and Swevers, 2018).
 """
 
+# First: refuses a processor that lacks what the compiled core was built for,
+# before anything loads the core.
+from lpvid import _cpu  # noqa: F401
+
+# isort: split
 from lpvid import datasets, handoff, initial, judge, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
 from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial

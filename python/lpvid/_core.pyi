@@ -13,6 +13,7 @@ from typing_extensions import Self
 
 __all__ = [
     "__version__",
+    "__target_features__",
     "SingularModelError",
     "frequency_response",
     "Problem",
@@ -30,6 +31,8 @@ __all__ = [
 ]
 
 __version__: str
+# "lpvid-target-features:avx,avx2,...;" (lpvid._cpu reads it from the file)
+__target_features__: str
 
 class SingularModelError(ArithmeticError): ...
 

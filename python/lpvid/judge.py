@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 __all__ = [
     "DEPENDENCE_TIE",
     "NOISE_SIGMAS",
+    "VALIDATION_TIE",
     "dependence",
     "identify_range",
     "noise_slack",
@@ -40,21 +41,31 @@ NOISE_SIGMAS = 2.0
 #: (then the cost decides).
 DEPENDENCE_TIE = 0.05
 
+#: Validation V_NLS within this fraction of the best counts as equal when
+#: starts are compared (:func:`lpvid.initial.choose` and the race of the
+#: starts).
+VALIDATION_TIE = 0.02
+
 
 def noise_slack(floor: float) -> float:
     """``NOISE_SIGMAS * sqrt(floor)``: the V_NLS difference within which two models tie."""
     return NOISE_SIGMAS * float(np.sqrt(max(float(floor), 0.0)))
 
 
-def tied(costs: Sequence[float], floor: float) -> list[bool]:
-    """Which of ``costs`` (V_NLS on data with ``floor`` complex residuals) tie with the best.
+def tied(costs: Sequence[float], floor: float, tolerance: float | None = None) -> list[bool]:
+    """Which of ``costs`` tie with the best.
 
-    Not finite costs never tie; when none is finite, none ties.
+    By default a cost ties when it is within :func:`noise_slack` of the best
+    (V_NLS on data with ``floor`` complex residuals); with ``tolerance``,
+    when it is within that fraction of the best. Not finite costs never
+    tie; when none is finite, none ties.
 
     Examples
     --------
     >>> tied([100.0, 115.0, 125.0, float("nan")], floor=100)
     [True, True, False, False]
+    >>> tied([100.0, 101.0, 103.0], floor=100, tolerance=0.02)
+    [True, True, False]
 
     """
     vals = np.asarray(costs, dtype=float)
@@ -62,7 +73,8 @@ def tied(costs: Sequence[float], floor: float) -> list[bool]:
     if not finite.any():
         return [False] * vals.size
     best = float(vals[finite].min())
-    return [bool(f and v <= best + noise_slack(floor)) for v, f in zip(vals, finite, strict=True)]
+    limit = best + noise_slack(floor) if tolerance is None else (1.0 + tolerance) * best
+    return [bool(f and v <= limit) for v, f in zip(vals, finite, strict=True)]
 
 
 def identify_range(model: LpvModel, data: FrfData) -> Any:

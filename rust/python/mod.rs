@@ -18,12 +18,19 @@ pyo3::create_exception!(
      and frequency."
 );
 
+/// The instruction-set extensions this build may use (build.rs), between a
+/// marker and a semicolon: `python/lpvid/_cpu.py` finds this string in the
+/// module's file and checks the processor before the module is loaded (code
+/// built for AVX2 may use it anywhere, module initialisation included).
+const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARGET_FEATURES"), ";");
+
 /// The compiled core of lpvid (private: use the `lpvid` package).
 #[pymodule]
 #[pyo3(name = "_core")]
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The package version, from Cargo.toml (lpvid.__version__).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("__target_features__", TARGET_FEATURES)?;
     m.add(
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),

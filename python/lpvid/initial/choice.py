@@ -8,12 +8,14 @@ import numpy as np
 
 from lpvid._checks import positive_float
 from lpvid.initial.candidates import Candidate
-from lpvid.judge import noise_slack, simplest, tied
+from lpvid.judge import VALIDATION_TIE, noise_slack, simplest, tied
 
 __all__ = ["choose"]
 
 
-def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Candidate, str]:
+def choose(
+    candidates: Sequence[Candidate], tolerance: float = VALIDATION_TIE
+) -> tuple[Candidate, str]:
     """The best initial candidate, and why.
 
     Only the candidates refined to convergence (:attr:`Candidate.refined`:
@@ -71,8 +73,8 @@ def choose(candidates: Sequence[Candidate], tolerance: float = 0.02) -> tuple[Ca
         among += f"; {raced} start(s) dropped by the race of the starts"
     if all(c.validation_vnls is not None for c in pool):
         vals = {id(c): float(c.validation_vnls) for c in pool}  # type: ignore[arg-type]
-        best = min(vals.values())
-        ties = [c for c in pool if vals[id(c)] <= (1 + tol) * best]
+        flags = tied([vals[id(c)] for c in pool], pool[0].validation_floor or 1, tol)
+        ties = [c for c, f in zip(pool, flags, strict=True) if f]
         pick = ties[simplest([c.dependence for c in ties], [vals[id(c)] for c in ties])]
         reason = (
             f"lowest validation V_NLS ({vals[id(pick)]:.5g}, "

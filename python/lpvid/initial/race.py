@@ -25,7 +25,7 @@ from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
 from lpvid.frozen import frozen_stable
-from lpvid.judge import dependence, tied
+from lpvid.judge import VALIDATION_TIE, dependence, tied
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
@@ -181,9 +181,11 @@ def _rank(
 ) -> list[tuple[bool, bool, float, float, int]]:
     """Sort keys: unstable between the points last, then the (validation) V_NLS.
 
-    Runners whose V_NLS ties with the best stable one's (within the noise,
-    :func:`lpvid.judge.tied`) come first, the one with the least scheduling
-    dependence (:func:`lpvid.judge.dependence`) ahead.
+    Runners whose V_NLS ties with the best stable one's come first, the one
+    with the least scheduling dependence (:func:`lpvid.judge.dependence`)
+    ahead: as :func:`lpvid.initial.choose` ranks them, within the noise of
+    the identification V_NLS, or within :data:`lpvid.judge.VALIDATION_TIE`
+    of the best validation V_NLS (:func:`lpvid.judge.tied`).
     """
     between = between_points(data.p)
     judge = validation if validation is not None else data
@@ -193,7 +195,8 @@ def _rank(
         costs.append(cost if np.isfinite(cost) else math.inf)
         unstable.append(not frozen_stable(r.model, between))
     stable_costs = [c if not u else math.inf for c, u in zip(costs, unstable, strict=True)]
-    ties = tied(stable_costs if not all(unstable) else costs, judge.n_residuals)
+    tolerance = None if validation is None else VALIDATION_TIE
+    ties = tied(stable_costs if not all(unstable) else costs, judge.n_residuals, tolerance)
     keys = []
     for k, r in enumerate(runners):
         dep = dependence(r.model, data) if ties[k] else costs[k]
