@@ -1,6 +1,8 @@
 //! The cone program of one step in Clarabel's standard form, and the
 //! Clarabel solver kept between the steps of a fit.
 
+use crate::error::Result as CoreResult;
+use crate::memory::{estimate, probe, try_grow};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
@@ -22,6 +24,15 @@ impl Csc {
             colptr: vec![0],
             ..Csc::default()
         }
+    }
+
+    /// Start a matrix with room for `nnz` entries, or
+    /// [`crate::Error::OutOfMemory`] naming `what`.
+    pub(super) fn with_capacity(nnz: usize, what: &'static str) -> CoreResult<Self> {
+        let mut m = Csc::new();
+        try_grow(&mut m.rowval, nnz, what)?;
+        try_grow(&mut m.values, nnz, what)?;
+        Ok(m)
     }
 
     /// Append one column from `(row, value)` pairs (rows ascending).
@@ -139,9 +150,20 @@ impl ConeSolver {
         ConeSolver { tol, cached: None }
     }
 
-    pub(super) fn run(&mut self, prog: &Program) -> Result<Solved, String> {
+    /// Solve `prog`: Clarabel's solution, or why it failed. The error is
+    /// [`crate::Error::OutOfMemory`] when a new solver would not fit in the
+    /// memory left (checked before Clarabel, which cannot fail gracefully,
+    /// allocates).
+    pub(super) fn run(&mut self, prog: &Program) -> CoreResult<Result<Solved, String>> {
         let key = prog.key();
         let reuse = matches!(&self.cached, Some((k, _)) if *k == key);
+        if !reuse {
+            // The old solver goes before the new one is built.
+            self.cached = None;
+            let (n, m) = (prog.q.len(), prog.b.len());
+            let bytes = estimate::clarabel(n, m, prog.p.values.len() + prog.a.values.len());
+            probe(bytes, "the cone solver (Clarabel)")?;
+        }
         let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<_, String> {
             if reuse {
                 if let Some((_, solver)) = self.cached.as_mut() {
@@ -186,12 +208,12 @@ impl ConeSolver {
             self.cached = Some((key, solver));
             Ok(sol)
         }));
-        match outcome {
+        Ok(match outcome {
             Ok(r) => r,
             Err(_) => {
                 self.cached = None;
                 Err("the cone solver panicked".to_string())
             }
-        }
+        })
     }
 }
