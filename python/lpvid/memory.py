@@ -1,0 +1,481 @@
+"""Memory: what a fit needs, what the process may still allocate, and MemoryError first.
+
+A fit's peak memory is estimated from the sizes of the problem by the core
+(``rust/memory/estimate.rs``: every large array the fit allocates, read off
+the code that allocates it, and checked against the peak a counting
+allocator measures in ``tests/core_memory.rs``). What the process may still
+allocate is the smallest of the address-space limit (``RLIMIT_AS``, e.g.
+``prlimit --as`` or ``ulimit -v``) less the address space in use, the memory
+limit of the process's cgroup (a container's limit) less its usage, and the
+system's ``MemAvailable`` (Linux; elsewhere nothing is known and nothing is
+refused). :func:`fit_nls`, :func:`fit_l21`, :func:`l21_path`,
+:func:`identify`, :func:`select` and :func:`fit_time` compare the two before
+any work and raise :class:`MemoryError` naming both when the fit cannot fit.
+An allocation that still fails in the core (the estimate is of the fit
+alone; other threads may take memory meanwhile) raises ``MemoryError`` with
+the size of the array, never a crash.
+
+In bytes, with ``P = (Nb + 1)(n + l)(n + r)`` free parameters (fewer when
+some are fixed), ``L = (n + l)(n + r)`` parameters of one LTI model,
+``F_t = 4 floor(128 / (l r))`` lines per block and ``t`` threads (the main
+terms of the estimate; :func:`fit_memory` gives the whole of it):
+
+- one Gauss-Newton evaluation of FRF data, the largest of
+  ``4 L^2 N ceil(F / F_t)`` (the Gram pieces of every block of lines),
+  ``8 L^2 N`` plus ``4 L^2 (Nb + 1)(Nb + 2)`` (the points' Gram matrices
+  and their sums per pair of basis functions) plus ``8 P^2`` (``J^T J``),
+  and ``16 N F l r`` for the residuals;
+- Levenberg-Marquardt: that evaluation plus ``8 P^2`` (the matrix of the
+  current point) and, during a step, ``8 P^2`` (its Cholesky factor);
+- the l2,1 fit: ``8 P^2`` plus two cone programs at once (two threads),
+  each about ``144 K^2 / 2`` bytes for ``K = Nb/(Nb + 1) P`` grouped
+  parameters (Clarabel's copy of the dense block, its KKT matrix and
+  factor, and the program as built), kept between steps, plus the
+  evaluation;
+- time records (``T`` samples, ``S`` = free parameters of A and B plus
+  ``n``): ``8 S^2 (t + 1)`` (the threads' sums and the Gram matrix of a
+  record), ``16 (2048 / l) l S`` (a block of Jacobian rows) and, for a
+  continuous-time model, ``8 (2048 / l) n^2 (n + r)`` (the hold's
+  derivatives of a block).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lpvid import _core
+
+__all__ = [
+    "available_memory",
+    "check_covariance",
+    "check_fit",
+    "check_memory",
+    "check_pipeline",
+    "covariance_memory",
+    "fit_memory",
+    "human",
+    "pipeline_memory",
+    "runs_at_once",
+    "sizes_memory",
+]
+
+#: Limits at or above this are "no limit" (cgroup v1 writes 2^63 - 4096).
+UNLIMITED = 1 << 60
+
+
+def human(nbytes: float) -> str:
+    """A size in bytes for people: ``"2.95 GB"``, ``"340 MB"``, ``"12 kB"``."""
+    b = float(nbytes)
+    if b >= 1e9:
+        return f"{b / 1e9:.2f} GB"
+    if b >= 1e6:
+        return f"{b / 1e6:.0f} MB"
+    if b >= 1e3:
+        return f"{b / 1e3:.0f} kB"
+    return f"{int(b)} bytes"
+
+
+def _read(path: str | Path) -> str | None:
+    try:
+        with open(path) as fh:
+            return fh.read()
+    except OSError:
+        return None
+
+
+def _int_file(path: Path) -> int | None:
+    text = _read(path)
+    if text is None:
+        return None
+    text = text.strip()
+    if text == "max":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        return None
+    return None if value >= UNLIMITED else value
+
+
+def _stat_field(path: Path, key: str) -> int:
+    """One field of a cgroup's ``memory.stat`` (0 when absent)."""
+    for line in (_read(path) or "").splitlines():
+        name, _, value = line.partition(" ")
+        if name == key and value.strip().isdigit():
+            return int(value)
+    return 0
+
+
+def _address_space() -> tuple[int, str] | None:
+    """Room under the address-space limit (RLIMIT_AS): the limit less what is mapped."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY or soft < 0:
+        return None
+    used = 0
+    for line in (_read("/proc/self/status") or "").splitlines():
+        if line.startswith("VmSize:"):
+            used = int(line.split()[1]) * 1024
+    return soft - used, (
+        f"the address-space limit (RLIMIT_AS) of {human(soft)} less {human(used)} in use"
+    )
+
+
+@functools.lru_cache(maxsize=1)
+def _limited_cgroups(root: Path = Path("/sys/fs/cgroup")) -> tuple[tuple[Path, int, str, str], ...]:
+    """The cgroups of this process (and their parents) that have a memory limit.
+
+    Each as (folder, limit, usage file, inactive-file field of memory.stat);
+    found once (a process does not change cgroups while it fits).
+    """
+    found = []
+    for line in (_read("/proc/self/cgroup") or "").splitlines():
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        _, controllers, rel = parts
+        if controllers == "":  # v2: the unified hierarchy
+            base, files = root, ("memory.max", "memory.current", "inactive_file")
+        elif "memory" in controllers.split(","):  # v1
+            base = root / "memory"
+            files = ("memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")
+        else:
+            continue
+        # The cgroup and its parents (a parent's limit holds too); inside a
+        # container the hierarchy may be mounted at the cgroup itself.
+        here = base / rel.lstrip("/")
+        dirs = [here, *here.parents] if here.is_dir() else [base]
+        for d in dirs:
+            if d != base and base not in d.parents:
+                continue
+            limit = _int_file(d / files[0])
+            if limit is not None:
+                found.append((d, limit, files[1], files[2]))
+    return tuple(found)
+
+
+def _cgroup() -> tuple[int, str] | None:
+    """Room under the memory limit of this process's cgroups (v2 or v1)."""
+    best: tuple[int, str] | None = None
+    for folder, limit, usage_file, inactive in _limited_cgroups():
+        usage = _int_file(folder / usage_file)
+        if usage is None:
+            continue
+        # Page cache that the kernel reclaims before it runs out counts as free.
+        usage -= _stat_field(folder / "memory.stat", inactive)
+        room = limit - max(usage, 0)
+        if best is None or room < best[0]:
+            best = room, f"the cgroup memory limit of {human(limit)} less {human(usage)} in use"
+    return best
+
+
+def _mem_available() -> tuple[int, str] | None:
+    for line in (_read("/proc/meminfo") or "").splitlines():
+        if line.startswith("MemAvailable:"):
+            value = int(line.split()[1]) * 1024
+            return value, f"the system's available memory (MemAvailable, {human(value)})"
+    return None
+
+
+def available_memory() -> tuple[int | None, str]:
+    """Bytes this process may still allocate, and what limits it.
+
+    The smallest of: the address-space limit (``RLIMIT_AS``) less the
+    address space in use, the memory limit of the process's cgroup less its
+    usage (reclaimable page cache not counted), and the system's
+    ``MemAvailable``. Read on Linux; elsewhere ``(None, "unknown")``.
+
+    Returns
+    -------
+    nbytes : int or None
+        Never negative; None when nothing is known.
+    source : str
+        What the figure is, for messages.
+
+    Examples
+    --------
+    >>> import lpvid
+    >>> nbytes, source = lpvid.available_memory()
+    >>> nbytes is None or nbytes >= 0
+    True
+
+    """
+    found = [x for x in (_address_space(), _cgroup(), _mem_available()) if x is not None]
+    if not found:
+        return None, "unknown"
+    room, source = min(found, key=lambda x: x[0])
+    return max(room, 0), source
+
+
+def sizes_memory(
+    n: int,
+    l: int,
+    r: int,
+    nb: int,
+    *,
+    method: str = "lm",
+    frf: tuple[int, int] | None = None,
+    records: Sequence[int] | None = None,
+    continuous: bool = False,
+    estimate_x0: bool = True,
+    free: NDArray[np.bool_] | None = None,
+    pinned: bool = False,
+) -> dict[str, int]:
+    """The core's estimate of a fit's peak memory from the sizes, by part (bytes).
+
+    Parameters
+    ----------
+    n, l, r, nb : int
+        States, outputs, inputs, basis functions.
+    method : {"lm", "l21"}
+        Levenberg-Marquardt, or the l2,1 cone steps.
+    frf : (N, F), optional
+        Scheduling points and frequency lines of FRF data.
+    records : sequence of int, optional
+        Samples of every time record.
+    continuous : bool
+        The time records belong to a continuous-time model (zero-order hold).
+    estimate_x0 : bool
+        The records' initial states are estimated.
+    free : bool array over theta, optional
+        Free parameters (default all).
+    pinned : bool
+        The l2,1 fit keeps its steps off flat directions (one more dense matrix).
+
+    Returns
+    -------
+    dict
+        ``evaluation`` (one Gauss-Newton evaluation), ``held`` (what the
+        optimiser keeps), ``step`` (one step beyond that), ``total`` (the
+        peak) and the ``threads`` of the core's pool it was made for.
+    """
+    return dict(
+        _core.fit_memory(
+            n,
+            r,
+            l,
+            nb,
+            method,
+            None if free is None else np.ascontiguousarray(free, dtype=bool),
+            frf,
+            None if records is None else [int(t) for t in records],
+            continuous,
+            estimate_x0,
+            pinned,
+        )
+    )
+
+
+def _shape(model: Any) -> tuple[int, int, int, int]:
+    """``model.shape`` from the arrays (``(n, r, l, Nb)``; without naming the basis functions)."""
+    nb1, l, n = model.C.shape
+    return n, model.B.shape[2], l, nb1 - 1
+
+
+def _sizes(data: Any, time_data: Any, continuous: bool) -> dict[str, Any]:
+    """The keyword arguments of :func:`sizes_memory` for FRF data and time records."""
+    from lpvid.timecost import as_time_cost
+
+    records, x0 = None, True
+    if time_data is not None:
+        cost = as_time_cost(time_data)
+        records = cost.data.n_samples
+        x0 = isinstance(cost.x0, str) and cost.x0 == "estimate"
+    return dict(
+        frf=None if data is None else (data.n_points, data.n_lines),
+        records=records,
+        continuous=continuous,
+        estimate_x0=x0,
+    )
+
+
+def fit_memory(
+    model: Any,
+    data: Any = None,
+    *,
+    method: str = "lm",
+    fixed: Any = None,
+    time_data: Any = None,
+    pinned: bool = False,
+) -> int:
+    """Bytes a fit of ``model`` needs at its peak (the core's estimate).
+
+    Parameters
+    ----------
+    model : LpvModel
+        The model to fit (its shape and basis).
+    data : FrfData, optional
+        FRF data.
+    method : {"lm", "l21"}
+        :func:`lpvid.fit_nls` / :func:`lpvid.fit_time` (``"lm"``) or
+        :func:`lpvid.fit_l21` / :func:`lpvid.l21_path` (``"l21"``).
+    fixed : optional
+        Fixed parameters, as in :func:`lpvid.fixed_mask`.
+    time_data : TimeData or TimeCost, optional
+        Time records (alone, or beside ``data``).
+    pinned : bool
+        As in :func:`lpvid.fit_l21`.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> import lpvid
+    >>> ds = lpvid.datasets.gantry()
+    >>> start = lpvid.identify(ds.identification, ds.order, ds.basis).model
+    >>> need = lpvid.fit_memory(start, ds.identification)
+    >>> 1e6 < need < 1e8
+    True
+
+    """
+    from lpvid.layout import free_mask
+
+    n, r, l, nb = _shape(model)
+    return sizes_memory(
+        n,
+        l,
+        r,
+        nb,
+        method=method,
+        free=free_mask(model, fixed),
+        pinned=pinned,
+        **_sizes(data, time_data, model.Ts is None),
+    )["total"]
+
+
+def covariance_memory(n_free: int, n_params: int) -> int:
+    """Bytes :func:`lpvid.covariance` needs at its peak (numpy, not the core).
+
+    ``J^T J``, the basis of the complement of the similarity directions,
+    the projected matrix and its scaled copy, LAPACK's copy and workspace
+    of the eigendecomposition (``syevd``: about twice the matrix) and the
+    eigenvectors: eight ``n_free x n_free`` matrices, then the
+    ``n_params x n_params`` result.
+    """
+    return 8 * (8 * n_free * n_free + n_params * n_params)
+
+
+def check_memory(need: int, what: str, sizes: str | Callable[[], str] = "") -> None:
+    """Raise :class:`MemoryError` when ``need`` bytes are more than the process may allocate.
+
+    Parameters
+    ----------
+    need : int
+        Bytes the run needs at its peak (an estimate).
+    what : str
+        The run, for the message (e.g. ``"fit_nls"``).
+    sizes : str or callable
+        The sizes the estimate comes from, for the message (or the call that
+        says them, made only for the message).
+    """
+    room, source = available_memory()
+    if room is None or need <= room:
+        return
+    said = sizes() if callable(sizes) else sizes
+    of = f" ({said})" if said else ""
+    raise MemoryError(
+        f"{what} needs about {human(need)} ({need} bytes) of memory at its peak{of}, "
+        f"estimated from its sizes before any work, and this process can allocate "
+        f"{human(room)} more: {source}. Fewer states, basis functions, lines or points (or "
+        "fixed parameters) make it smaller; lpvid.fit_memory gives the estimate."
+    )
+
+
+def _describe(n: int, l: int, r: int, nb: int, n_free: int, sizes: dict[str, Any]) -> str:
+    """The sizes behind an estimate, for messages."""
+    parts = [f"n = {n}, {l} output(s) x {r} input(s), Nb = {nb}, {n_free} free parameters"]
+    frf, records = sizes.get("frf"), sizes.get("records")
+    if frf is not None:
+        parts.append(f"N = {frf[0]} points, F = {frf[1]} lines")
+    if records is not None:
+        parts.append(f"{len(records)} time record(s) of up to {max(records)} samples")
+    return "; ".join(parts)
+
+
+def check_fit(
+    what: str,
+    model: Any,
+    data: Any,
+    free: NDArray[np.bool_],
+    method: str,
+    time_data: Any = None,
+    pinned: bool = False,
+) -> None:
+    """:func:`check_memory` for one fit of ``model`` (the fitting functions call it first)."""
+    n, r, l, nb = _shape(model)
+    sizes = _sizes(data, time_data, model.Ts is None)
+    need = sizes_memory(n, l, r, nb, method=method, free=free, pinned=pinned, **sizes)["total"]
+    check_memory(need, what, lambda: _describe(n, l, r, nb, int(np.sum(free)), sizes))
+
+
+def check_covariance(model: Any, data: Any, free: NDArray[np.bool_]) -> None:
+    """:func:`check_memory` for :func:`lpvid.covariance`: one evaluation, then numpy's share."""
+    n, r, l, nb = _shape(model)
+    sizes = _sizes(data, None, model.Ts is None)
+    n_free = int(np.sum(free))
+    evaluation = sizes_memory(n, l, r, nb, free=free, **sizes)["evaluation"]
+    need = evaluation + covariance_memory(n_free, free.size)
+    check_memory(need, "covariance", lambda: _describe(n, l, r, nb, n_free, sizes))
+
+
+def pipeline_memory(
+    data: Any, order: int, basis: Any, time_data: Any = None, refit: bool = True
+) -> tuple[int, str]:
+    """Bytes one :func:`lpvid.identify` run needs at its peak, and the sizes, for messages.
+
+    The largest of its fits with every parameter free: the
+    Levenberg-Marquardt fits of the starts, the l2,1 fits of the path
+    (with the pinned directions), and with ``refit`` the covariance of the
+    chosen model (:func:`covariance_memory`). The local models, SMILE and
+    the results kept along the way are far smaller.
+    """
+    l, r, nb = data.n_outputs, data.n_inputs, len(basis)
+    sizes = _sizes(data, time_data, data.Ts is None)
+    lm = sizes_memory(order, l, r, nb, method="lm", **sizes)
+    path = sizes_memory(order, l, r, nb, method="l21", pinned=True, **sizes)
+    n_params = (nb + 1) * (order + l) * (order + r)
+    need = max(lm["total"], path["total"])
+    if refit:
+        need = max(need, lm["evaluation"] + covariance_memory(n_params, n_params))
+    return need, _describe(order, l, r, nb, n_params, sizes)
+
+
+def check_pipeline(
+    what: str, data: Any, order: int, basis: Any, time_data: Any = None, refit: bool = True
+) -> None:
+    """:func:`check_memory` for one :func:`lpvid.identify` run (:func:`pipeline_memory`)."""
+    need, sizes = pipeline_memory(data, order, basis, time_data, refit)
+    check_memory(need, what, sizes)
+
+
+def runs_at_once(needs: Sequence[int], most: int, what: str) -> int:
+    """How many runs with these peak needs may go on at once in this process.
+
+    At most ``most``, and no more than the largest of the runs that fit
+    alone together fit in what the process may allocate. Raises
+    :class:`MemoryError` when not one run fits alone.
+    """
+    room, source = available_memory()
+    if room is None or not needs:
+        return most
+    fitting = sorted((x for x in needs if x <= room), reverse=True)
+    if not fitting:
+        raise MemoryError(
+            f"{what}: every run needs more memory than this process can allocate: the "
+            f"smallest about {human(min(needs))}, against {human(room)} ({source})"
+        )
+    at_once = max(most, 1)
+    while at_once > 1 and sum(fitting[:at_once]) > room:
+        at_once -= 1
+    return at_once
