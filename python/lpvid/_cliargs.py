@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import lpvid
+from lpvid._files import foreign_entries
+from lpvid.report import REPORT_ENTRIES
 
 __all__ = [
     "EXIT_MISUSE",
@@ -178,6 +180,14 @@ def out_dir(out: str) -> None:
         raise Misuse(f"--out: cannot create {out}: {existing} is not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise Misuse(f"--out: cannot write into {existing} (permission denied)")
+    # The report replaces an earlier one whole; a folder with other files is kept.
+    foreign = foreign_entries(path, REPORT_ENTRIES)
+    if foreign:
+        raise Misuse(
+            f"--out: {out} holds files that are not an lpvid report ({', '.join(foreign[:3])}"
+            f"{', ...' if len(foreign) > 3 else ''}); the report replaces the folder whole: "
+            "choose a new folder"
+        )
 
 
 def fixed_of(names: list[str]) -> dict[str, bool] | None:
