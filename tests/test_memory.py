@@ -227,3 +227,13 @@ def test_a_forced_failure_inside_identify_stops_it_with_memory_error():
             lpvid.identify(ds.identification, ds.order, ds.basis, routes=["plain"])
     finally:
         _core._fail_allocation_after(None)
+
+
+def test_the_command_line_says_memory_error_in_one_line(monkeypatch, tmp_path, capsys):
+    from lpvid.cli import main
+
+    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (10**6, "a 1 MB test"))
+    assert main(["demo", "--out", str(tmp_path / "o"), "--no-figures", "--quiet"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lpvid demo: error: identify needs about")
+    assert not (tmp_path / "o").exists()

@@ -15,6 +15,11 @@ An allocation that still fails in the core (the estimate is of the fit
 alone; other threads may take memory meanwhile) raises ``MemoryError`` with
 the size of the array, never a crash.
 
+The figure checked is :func:`resident` of the arrays' peak: half as much
+again for what the memory allocator holds back (blocks freed by one thread
+stay with it) and 64 MB for the first run in a process (:data:`RESIDENT`,
+:data:`FIRST_RUN`, measured with ``benches/bench_scale.py``).
+
 In bytes, with ``P = (Nb + 1)(n + l)(n + r)`` free parameters (fewer when
 some are fixed), ``L = (n + l)(n + r)`` parameters of one LTI model,
 ``F_t = 4 floor(128 / (l r))`` lines per block and ``t`` threads (the main
@@ -61,12 +66,26 @@ __all__ = [
     "fit_memory",
     "human",
     "pipeline_memory",
+    "resident",
     "runs_at_once",
     "sizes_memory",
 ]
 
 #: Limits at or above this are "no limit" (cgroup v1 writes 2^63 - 4096).
 UNLIMITED = 1 << 60
+
+#: Resident memory per byte of a run's arrays at their peak: the memory
+#: allocator keeps blocks that one thread freed for that thread, so the
+#: process grows by more than the arrays alive at once. Measured with
+#: ``benches/bench_scale.py`` (identify's own growth of the peak resident
+#: memory over the core's estimate of its arrays): 1.32-1.50 at n = 16 2x2
+#: (409-465 MB against 310 MB) and 1.37 at n = 24 3x3 (1285 against 937 MB).
+RESIDENT = 1.5
+
+#: What the first run in a process adds besides its arrays: modules loaded
+#: on first use, BLAS buffers, thread stacks. Measured: identify's growth
+#: was 34-76 MB on the gantry-size rungs, whose arrays are 9-16 MB.
+FIRST_RUN = 64 << 20
 
 
 def human(nbytes: float) -> str:
@@ -275,6 +294,14 @@ def sizes_memory(
     )
 
 
+def resident(nbytes: int) -> int:
+    """What a run whose arrays peak at ``nbytes`` needs of the machine.
+
+    ``RESIDENT * nbytes + FIRST_RUN`` (:data:`RESIDENT`, :data:`FIRST_RUN`).
+    """
+    return int(RESIDENT * nbytes) + FIRST_RUN
+
+
 def _shape(model: Any) -> tuple[int, int, int, int]:
     """``model.shape`` from the arrays (``(n, r, l, Nb)``; without naming the basis functions)."""
     nb1, l, n = model.C.shape
@@ -307,7 +334,11 @@ def fit_memory(
     time_data: Any = None,
     pinned: bool = False,
 ) -> int:
-    """Bytes a fit of ``model`` needs at its peak (the core's estimate).
+    """Bytes a fit of ``model`` needs of the machine at its peak: the figure the fits check.
+
+    The core's estimate of the fit's arrays at their peak
+    (:func:`sizes_memory`), times :data:`RESIDENT` (what the memory
+    allocator holds back), plus :data:`FIRST_RUN`.
 
     Parameters
     ----------
@@ -342,7 +373,7 @@ def fit_memory(
     from lpvid.layout import free_mask
 
     n, r, l, nb = _shape(model)
-    return sizes_memory(
+    arrays = sizes_memory(
         n,
         l,
         r,
@@ -352,6 +383,7 @@ def fit_memory(
         pinned=pinned,
         **_sizes(data, time_data, model.Ts is None),
     )["total"]
+    return resident(arrays)
 
 
 def covariance_memory(n_free: int, n_params: int) -> int:
@@ -415,8 +447,8 @@ def check_fit(
     """:func:`check_memory` for one fit of ``model`` (the fitting functions call it first)."""
     n, r, l, nb = _shape(model)
     sizes = _sizes(data, time_data, model.Ts is None)
-    need = sizes_memory(n, l, r, nb, method=method, free=free, pinned=pinned, **sizes)["total"]
-    check_memory(need, what, lambda: _describe(n, l, r, nb, int(np.sum(free)), sizes))
+    arrays = sizes_memory(n, l, r, nb, method=method, free=free, pinned=pinned, **sizes)["total"]
+    check_memory(resident(arrays), what, lambda: _describe(n, l, r, nb, int(np.sum(free)), sizes))
 
 
 def check_covariance(model: Any, data: Any, free: NDArray[np.bool_]) -> None:
@@ -425,7 +457,7 @@ def check_covariance(model: Any, data: Any, free: NDArray[np.bool_]) -> None:
     sizes = _sizes(data, None, model.Ts is None)
     n_free = int(np.sum(free))
     evaluation = sizes_memory(n, l, r, nb, free=free, **sizes)["evaluation"]
-    need = evaluation + covariance_memory(n_free, free.size)
+    need = resident(evaluation + covariance_memory(n_free, free.size))
     check_memory(need, "covariance", lambda: _describe(n, l, r, nb, n_free, sizes))
 
 
@@ -434,21 +466,26 @@ def pipeline_memory(
 ) -> tuple[int, str]:
     """Bytes one :func:`lpvid.identify` run needs at its peak, and the sizes, for messages.
 
-    The largest of its fits with every parameter free: the
-    Levenberg-Marquardt fits of the starts, the l2,1 fits of the path
-    (with the pinned directions), and with ``refit`` the covariance of the
-    chosen model (:func:`covariance_memory`). The local models, SMILE and
-    the results kept along the way are far smaller.
+    The arrays of the largest of its fits with every parameter free (the
+    Levenberg-Marquardt fits of the starts, the l2,1 fits of the path with
+    the pinned directions, and with ``refit`` the covariance of the chosen
+    model, :func:`covariance_memory`), as :func:`resident` memory. The local
+    models (the subspace step: 63 MB of numpy arrays at n = 24 3x3 with
+    1000 lines), SMILE and the results kept along the way are smaller.
+    Against ``benches/bench_scale.py`` (identify's own growth of the peak
+    resident memory): gantry 34 MB against this 102 MB, n = 10 2x2 76
+    against 113 MB, n = 16 2x2 409-465 against 529 MB, n = 24 3x3 1285
+    against 1469 MB.
     """
     l, r, nb = data.n_outputs, data.n_inputs, len(basis)
     sizes = _sizes(data, time_data, data.Ts is None)
     lm = sizes_memory(order, l, r, nb, method="lm", **sizes)
     path = sizes_memory(order, l, r, nb, method="l21", pinned=True, **sizes)
     n_params = (nb + 1) * (order + l) * (order + r)
-    need = max(lm["total"], path["total"])
+    arrays = max(lm["total"], path["total"])
     if refit:
-        need = max(need, lm["evaluation"] + covariance_memory(n_params, n_params))
-    return need, _describe(order, l, r, nb, n_params, sizes)
+        arrays = max(arrays, lm["evaluation"] + covariance_memory(n_params, n_params))
+    return resident(arrays), _describe(order, l, r, nb, n_params, sizes)
 
 
 def check_pipeline(

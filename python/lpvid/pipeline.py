@@ -251,9 +251,12 @@ def identify(
         an l2,1 step, plus one evaluation: ``4 L^2 N ceil(F / F_t)`` for the
         Gram pieces of the blocks of lines or ``8 L^2 (N + (Nb + 1)(Nb + 2)
         / 2) + 8 P^2`` for the points' Gram matrices, their sums and
-        ``J^T J``; with ``refit``, ``64 P^2`` for the covariance. Measured
-        against ``benches/bench_scale.py``: see :mod:`lpvid.memory`, and
-        :func:`lpvid.fit_memory` for the estimate of one fit.
+        ``J^T J``; with ``refit``, ``64 P^2`` for the covariance; then half
+        as much again and 64 MB for what the allocator holds back and the
+        first run's modules (:func:`lpvid.memory.resident`). At n = 16 2x2
+        (N = 9, F = 500) that is 529 MB, n = 24 3x3 (N = 9, F = 1000)
+        1.47 GB; ``benches/bench_scale.py`` measured 409-465 MB and 1.29 GB
+        of growth (:func:`lpvid.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
     if not isinstance(data, FrfData):

@@ -331,8 +331,9 @@ def select(
     Memory: each identify run needs what :func:`lpvid.identify` says
     (about ``8 P^2`` bytes for ``J^T J`` of its ``P = (Nb + 1)(n + l)(n + r)``
     parameters, twice that during a step, ``144 K^2`` for the cone programs,
-    ``K = Nb P / (Nb + 1)``, ``64 P^2`` for the covariance; see
-    :mod:`lpvid.memory`), and with the default threads the runs that go on
+    ``K = Nb P / (Nb + 1)``, ``64 P^2`` for the covariance, then half as
+    much again and 64 MB: :func:`lpvid.memory.pipeline_memory`), and with
+    the default threads the runs that go on
     at once add up: fewer threads run at once when the largest runs would
     not fit together in what the process may allocate
     (:func:`lpvid.available_memory`), and a pair that does not fit alone is

@@ -121,9 +121,11 @@ def fit_time(
         current point and of the trial point), ``16 * 2048 S`` for a block of
         Jacobian rows and, for a continuous-time model, ``8 (2048 / l) n^2
         (n + r)`` for the hold's derivatives of a block; with ``gamma > 0``
-        the cone programs as in :func:`lpvid.fit_l21`. The records
-        themselves add ``8 T (r + Nb + 2 l)`` bytes (``T`` samples) and the
-        simulated trajectory ``8 T (n + 3 l)``. See :mod:`lpvid.memory`.
+        the cone programs as in :func:`lpvid.fit_l21`; the simulated
+        trajectory of the longest record (``T`` samples) ``8 T (n + 3 l)``;
+        then half as much again and 64 MB (:func:`lpvid.memory.resident`).
+        The records themselves hold ``8 T (r + Nb + 2 l)`` bytes each.
+        :func:`lpvid.fit_memory` gives the figure.
 
     Warns
     -----
