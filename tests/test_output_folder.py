@@ -41,19 +41,24 @@ def interrupt(*args, **kwargs):
     raise KeyboardInterrupt
 
 
+def interrupted_at(name):
+    """``write_atomic`` of the report module, interrupted at the file ``name``."""
+    real = lpvid.report.write_atomic
+
+    def write(path, fill):
+        if path.name == name:
+            raise KeyboardInterrupt
+        return real(path, fill)
+
+    return write
+
+
 @pytest.mark.parametrize("where", ["key_numbers", "_markdown", "write_atomic"])
 def test_an_interrupted_report_leaves_no_folder(result, tmp_path, monkeypatch, where):
     out = tmp_path / "report"
     if where == "write_atomic":
         # The last file (report.md) fails after the model files are written.
-        real = lpvid.report.write_atomic
-
-        def last_fails(path, write):
-            if path.name == "report.md":
-                raise KeyboardInterrupt
-            return real(path, write)
-
-        monkeypatch.setattr(lpvid.report, "write_atomic", last_fails)
+        monkeypatch.setattr(lpvid.report, "write_atomic", interrupted_at("report.md"))
     else:
         monkeypatch.setattr(lpvid.report, where, interrupt)
     with pytest.raises(KeyboardInterrupt):
@@ -151,13 +156,7 @@ def test_select_report_is_written_whole(tmp_path, monkeypatch):
     sel = lpvid.select(data, [2], [1], validation=val)
     out = tmp_path / "sel"
     real = lpvid.report.write_atomic
-
-    def grid_fails(path, write):
-        if path.name == "select.md":
-            raise KeyboardInterrupt
-        return real(path, write)
-
-    monkeypatch.setattr(lpvid.report, "write_atomic", grid_fails)
+    monkeypatch.setattr(lpvid.report, "write_atomic", interrupted_at("select.md"))
     with pytest.raises(KeyboardInterrupt):
         lpvid.report.write_select_report(sel, out, figures=False)
     assert not out.exists() and leftovers(tmp_path, "sel") == []

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import lpvid
-from lpvid._files import foreign_entries
+from lpvid._files import check_replaceable
 from lpvid.report import REPORT_ENTRIES
 
 __all__ = [
@@ -181,13 +181,10 @@ def out_dir(out: str) -> None:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise Misuse(f"--out: cannot write into {existing} (permission denied)")
     # The report replaces an earlier one whole; a folder with other files is kept.
-    foreign = foreign_entries(path, REPORT_ENTRIES)
-    if foreign:
-        raise Misuse(
-            f"--out: {out} holds files that are not an lpvid report ({', '.join(foreign[:3])}"
-            f"{', ...' if len(foreign) > 3 else ''}); the report replaces the folder whole: "
-            "choose a new folder"
-        )
+    try:
+        check_replaceable(path, REPORT_ENTRIES)
+    except FileExistsError as exc:
+        raise Misuse(f"--out: {exc}") from exc
 
 
 def fixed_of(names: list[str]) -> dict[str, bool] | None:

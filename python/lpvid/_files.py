@@ -50,11 +50,19 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None
     return target
 
 
-def foreign_entries(path: Path, names: Collection[str]) -> list[str]:
-    """The entries of the folder ``path`` not named in ``names`` (none when it is missing)."""
+def check_replaceable(path: Path, names: Collection[str]) -> None:
+    """FileExistsError unless ``path`` is missing or a folder holding only entries in ``names``."""
+    if path.exists() and not path.is_dir():
+        raise FileExistsError(f"{path} exists and is not a folder")
     if not path.is_dir():
-        return []
-    return sorted(e.name for e in path.iterdir() if e.name not in names)
+        return
+    foreign = sorted(e.name for e in path.iterdir() if e.name not in names)
+    if foreign:
+        raise FileExistsError(
+            f"{path} holds files that lpvid does not write ({', '.join(foreign[:3])}"
+            f"{', ...' if len(foreign) > 3 else ''}); the new folder would replace it whole: "
+            "choose another folder or remove them"
+        )
 
 
 def _exchange(a: Path, b: Path) -> bool:
@@ -88,14 +96,7 @@ def write_folder_atomic(
     first, so ``path`` is missing for the moment between two renames.
     """
     target = Path(path)
-    if target.exists() and not target.is_dir():
-        raise FileExistsError(f"{target} exists and is not a folder")
-    foreign = foreign_entries(target, replaceable)
-    if foreign:
-        raise FileExistsError(
-            f"{target} exists and holds files lpvid does not write ({', '.join(foreign[:5])}"
-            f"{', ...' if len(foreign) > 5 else ''}): choose another folder or remove them"
-        )
+    check_replaceable(target, replaceable)
     parent = target.parent if str(target.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=parent))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 from concurrent.futures import Executor
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -135,41 +136,41 @@ def write_report(
         The path of ``report.md``.
     """
     out = Path(out_dir)
-    write_folder_atomic(
-        out,
-        lambda folder: _fill_report(
-            result, folder, title, description, figures, inputs, outputs, p_label, pool
-        ),
-        REPORT_ENTRIES,
-    )
+    text = _Text(title, description, figures, _labels(inputs, outputs, p_label))
+
+    def fill(folder: Path) -> None:
+        _fill_report(result, folder, text, pool)
+
+    write_folder_atomic(out, fill, REPORT_ENTRIES)
     return out / "report.md"
 
 
-def _fill_report(
-    result: IdentifyResult,
-    out: Path,
-    title: str,
-    description: str | None,
-    figures: bool,
-    inputs: Any,
-    outputs: Any,
-    p_label: str | None,
-    pool: Executor | None,
-) -> None:
+@dataclass(frozen=True)
+class _Text:
+    """What a report says besides the result: title, description, figures and their labels."""
+
+    title: str
+    description: str | None
+    figures: bool
+    labels: dict[str, Any]
+
+
+def _labels(inputs: Any, outputs: Any, p_label: str | None) -> dict[str, Any]:
+    """The figures' labels that were given."""
+    given = (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
+    return {k: v for k, v in given if v is not None}
+
+
+def _fill_report(result: IdentifyResult, out: Path, text: _Text, pool: Executor | None) -> None:
     """Write the files of :func:`write_report` into the (new) folder ``out``."""
     result.model.save(out / "model.json")
     result.model.save(out / "model.mat")
-    numbers = key_numbers(result)
-    text = json.dumps(numbers, indent=1, allow_nan=True).encode()
-    write_atomic(out / "result.json", lambda fh: fh.write(text))
+    numbers = json.dumps(key_numbers(result), indent=1, allow_nan=True).encode()
+    write_atomic(out / "result.json", lambda fh: fh.write(numbers))
     drawn: list[tuple[str, str]] = []
     figure_note = ""
-    labels = {
-        k: v
-        for k, v in (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
-        if v is not None
-    }
-    wait = start_drawing(report_jobs(result, labels), out / "figures", pool) if figures else None
+    jobs = report_jobs(result, text.labels)
+    wait = start_drawing(jobs, out / "figures", pool) if text.figures else None
     try:
         trust = _trust(result)  # while the pool draws
         if wait is not None:
@@ -182,7 +183,7 @@ def _fill_report(
         if wait is not None:
             wait.abandon()
         raise
-    md = _markdown(result, title, description, drawn, figure_note, trust)
+    md = _markdown(result, text.title, text.description, drawn, figure_note, trust)
     write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
 
 
@@ -362,30 +363,18 @@ def write_select_report(
         The path of ``select.md``.
     """
     out = Path(out_dir)
-    labels = (inputs, outputs, p_label)
-    write_folder_atomic(
-        out,
-        lambda folder: _fill_select(sel, folder, title, description, figures, *labels),
-        REPORT_ENTRIES,
-    )
+    text = _Text(title, description, figures, _labels(inputs, outputs, p_label))
+    write_folder_atomic(out, lambda folder: _fill_select(sel, folder, text), REPORT_ENTRIES)
     return out / "select.md"
 
 
-def _fill_select(
-    sel: SelectResult,
-    out: Path,
-    title: str,
-    description: str | None,
-    figures: bool,
-    inputs: Any,
-    outputs: Any,
-    p_label: str | None,
-) -> None:
+def _fill_select(sel: SelectResult, out: Path, text: _Text) -> None:
     """Write the files of :func:`write_select_report` into the (new) folder ``out``."""
-    label = f"{title}: the chosen model ({sel.row.label})"
-    _fill_report(sel.best, out, label, description, figures, inputs, outputs, p_label, None)
-    text = json.dumps(select_numbers(sel), indent=1, allow_nan=True).encode()
-    write_atomic(out / "grid.json", lambda fh: fh.write(text))
+    chosen = f"{text.title}: the chosen model ({sel.row.label})"
+    _fill_report(sel.best, out, replace(text, title=chosen), None)
+    title, description, figures = text.title, text.description, text.figures
+    grid = json.dumps(select_numbers(sel), indent=1, allow_nan=True).encode()
+    write_atomic(out / "grid.json", lambda fh: fh.write(grid))
     figure = []
     if figures:
         try:
