@@ -6,7 +6,7 @@
 //! The tests of this file share the allocator's counters: they take a lock.
 
 use lpvid::memory::estimate::{FitSizes, Method, TimeSizes};
-use lpvid::memory::fail_allocation_after;
+use lpvid::memory::{allocation_failure_pending, fail_allocation_after};
 use lpvid::testing::Lcg;
 use lpvid::{
     fit_l21, frequency_response, levenberg_marquardt, Error, FreeSet, FrfData, InitialState,
@@ -279,13 +279,14 @@ fn the_estimate_bounds_the_peak_of_a_time_record_fit() {
 /// Runs `fit` with the allocation after the first `k` fallible ones made
 /// to fail, for k = 0, 1, ... until a run makes fewer: every run that met
 /// the failure must return `Error::OutOfMemory` (a panic would fail the
-/// test, an abort would end it). Returns the number of failures met.
+/// test, an abort would end it, and a run that met it and went on took it
+/// for a rejected step). Returns the number of failures met.
 fn every_failure<T>(what: &str, fit: impl Fn() -> lpvid::Result<T>) -> usize {
     let mut met = 0;
     for k in 0.. {
         fail_allocation_after(Some(k));
         let out = fit();
-        // Disarmed when it fired; disarm anyway (a run that made fewer).
+        let fired = !allocation_failure_pending();
         fail_allocation_after(None);
         match out {
             Err(Error::OutOfMemory { bytes, what: array }) => {
@@ -294,7 +295,10 @@ fn every_failure<T>(what: &str, fit: impl Fn() -> lpvid::Result<T>) -> usize {
                 met += 1;
             }
             Err(e) => panic!("{what}: failure {k} gave {e:?}, not OutOfMemory"),
-            Ok(_) => break,
+            Ok(_) => {
+                assert!(!fired, "{what}: failure {k} was met and swallowed");
+                break;
+            }
         }
         assert!(k < 10_000, "{what}: no end to the fallible allocations");
     }

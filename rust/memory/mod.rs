@@ -31,6 +31,12 @@ pub fn fail_allocation_after(count: Option<usize>) {
     FAIL_AFTER.store(v, Ordering::SeqCst);
 }
 
+/// Whether the test hook is armed and has not fired yet.
+#[doc(hidden)]
+pub fn allocation_failure_pending() -> bool {
+    FAIL_AFTER.load(Ordering::SeqCst) >= 0
+}
+
 /// Whether the test hook fails this allocation.
 fn injected() -> bool {
     if FAIL_AFTER.load(Ordering::Relaxed) < 0 {
