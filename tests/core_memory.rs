@@ -6,7 +6,7 @@
 //! The tests of this file share the allocator's counters: they take a lock.
 
 use lpvid::memory::estimate::{FitSizes, Method, TimeSizes};
-use lpvid::memory::{allocation_failure_pending, fail_allocation_after};
+use lpvid::memory::{allocation_failure_pending, fail_allocation_after, guarded_allocation};
 use lpvid::testing::Lcg;
 use lpvid::{
     fit_l21, frequency_response, levenberg_marquardt, Error, FreeSet, FrfData, InitialState,
@@ -14,7 +14,7 @@ use lpvid::{
 };
 use num_complex::Complex64 as C64;
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 /// The system allocator, counting the bytes in use and their peak.
@@ -22,10 +22,16 @@ struct Counting;
 
 static CURRENT: AtomicUsize = AtomicUsize::new(0);
 static PEAK: AtomicUsize = AtomicUsize::new(0);
+/// While set: the largest allocation made outside lpvid's fallible helpers.
+static RECORD: AtomicBool = AtomicBool::new(false);
+static LARGEST_UNGUARDED: AtomicUsize = AtomicUsize::new(0);
 
 fn grew(bytes: usize) {
     let now = CURRENT.fetch_add(bytes, Ordering::SeqCst) + bytes;
     PEAK.fetch_max(now, Ordering::SeqCst);
+    if RECORD.load(Ordering::Relaxed) && !guarded_allocation() {
+        LARGEST_UNGUARDED.fetch_max(bytes, Ordering::SeqCst);
+    }
 }
 
 unsafe impl GlobalAlloc for Counting {
@@ -342,4 +348,64 @@ fn every_fallible_allocation_of_a_fit_fails_as_an_error() {
     assert!(met > 10, "only {met} fallible allocations in a time fit");
     // After the hook: the same fit runs to its end.
     assert!(levenberg_marquardt(&p, &theta, &free, &lm, &mut Silent).is_ok());
+}
+
+/// The largest allocation `f` makes outside lpvid's fallible helpers (and
+/// outside the probed set-up of a Clarabel solver).
+fn largest_unguarded<T>(f: impl FnOnce() -> T) -> usize {
+    LARGEST_UNGUARDED.store(0, Ordering::SeqCst);
+    RECORD.store(true, Ordering::SeqCst);
+    let out = f();
+    RECORD.store(false, Ordering::SeqCst);
+    drop(out);
+    LARGEST_UNGUARDED.load(Ordering::SeqCst)
+}
+
+/// Allocations outside the fallible helpers that a fit may make: faer's
+/// matrix products pack their operands into buffers of their own (a
+/// cache-sized slab per thread, a panel up to the size of a product's
+/// operand; 1-3.6 MB here), which the estimate's scratch allowance covers.
+const UNGUARDED: usize = 4 << 20;
+
+#[test]
+fn the_large_arrays_of_a_fit_are_all_made_fallibly() {
+    let _lock = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let lm = LmSettings {
+        max_iter: 2,
+        ..LmSettings::default()
+    };
+    // n = 40 SISO: the Gram pieces of a block of lines 5.4-5.9 MB, the
+    // points' Gram matrices 22.6 MB, J^T J and the step's factor 90 MB.
+    let shape = Shape::new(40, 1, 1, 1).unwrap();
+    let (p, theta) = problem(shape, 3, 200);
+    let free = FreeSet::all(shape.len());
+    let largest = largest_unguarded(|| levenberg_marquardt(&p, &theta, &free, &lm, &mut Silent));
+    assert!(
+        largest <= UNGUARDED,
+        "LM: {largest} bytes allocated infallibly"
+    );
+    // n = 16 2x2 Nb = 4: the cone step's dense block 13.4 MB, its program's
+    // P 13.4 MB and Clarabel's arrays (probed), J^T J 21 MB.
+    let shape = Shape::new(16, 2, 2, 4).unwrap();
+    let (p, theta) = problem(shape, 9, 500);
+    let free = FreeSet::all(shape.len());
+    let l21 = L21Settings {
+        max_outer: 1,
+        max_inner: 2,
+        ..L21Settings::default()
+    };
+    let sup = vec![1.0; shape.nb];
+    let largest = largest_unguarded(|| fit_l21(&p, &theta, &free, &sup, &l21, None, &mut Silent));
+    assert!(
+        largest <= UNGUARDED,
+        "l21: {largest} bytes allocated infallibly"
+    );
+    // Time records: the Jacobian block 14.4 MB, each thread's sums 6.2 MB.
+    let (t, theta) = time_problem(Shape::new(16, 1, 2, 2).unwrap(), 3000, None);
+    let free = FreeSet::all(t.shape().len());
+    let largest = largest_unguarded(|| levenberg_marquardt(&t, &theta, &free, &lm, &mut Silent));
+    assert!(
+        largest <= UNGUARDED,
+        "time: {largest} bytes allocated infallibly"
+    );
 }

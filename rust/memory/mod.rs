@@ -16,7 +16,30 @@ pub mod estimate;
 
 use crate::error::{Error, Result};
 use faer::Mat;
+use std::cell::Cell;
 use std::sync::atomic::{AtomicI64, Ordering};
+
+thread_local! {
+    /// Set while this thread allocates through a fallible helper, or inside
+    /// a call that was probed first (Clarabel's set-up).
+    static GUARDED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Whether the allocation this thread is making goes through a fallible
+/// helper or a probed call: for a test's allocator that checks that every
+/// large array of a fit is made so.
+#[doc(hidden)]
+pub fn guarded_allocation() -> bool {
+    GUARDED.with(Cell::get)
+}
+
+/// Run `f` with this thread's allocations marked as guarded.
+pub(crate) fn guarded<T>(f: impl FnOnce() -> T) -> T {
+    let before = GUARDED.with(|g| g.replace(true));
+    let out = f();
+    GUARDED.with(|g| g.set(before));
+    out
+}
 
 /// Test hook: how many fallible allocations may still succeed before one
 /// fails (negative: none is made to fail).
@@ -93,8 +116,7 @@ pub fn try_grow<T>(v: &mut Vec<T>, additional: usize, what: &'static str) -> Res
     if injected() {
         return Err(out_of_memory(bytes, what));
     }
-    v.try_reserve_exact(additional)
-        .map_err(|_| out_of_memory(bytes, what))
+    guarded(|| v.try_reserve_exact(additional)).map_err(|_| out_of_memory(bytes, what))
 }
 
 /// A `rows x cols` matrix with entries `f(i, j)`, or
@@ -110,8 +132,7 @@ pub fn try_mat(
         return Err(out_of_memory(bytes, what));
     }
     let mut m = Mat::new();
-    m.try_reserve(rows, cols)
-        .map_err(|_| out_of_memory(bytes, what))?;
+    guarded(|| m.try_reserve(rows, cols)).map_err(|_| out_of_memory(bytes, what))?;
     // Within the capacity just reserved: no further allocation.
     m.resize_with(rows, cols, f);
     Ok(m)
