@@ -27,6 +27,12 @@ def result():
     return lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
 
 
+@pytest.fixture(autouse=True)
+def quick(monkeypatch):
+    """The report's stability section (a second of root finding and an LMI) left out."""
+    monkeypatch.setattr(lpvid.report, "_trust", lambda result: [])
+
+
 def snapshot(folder):
     """Every file under ``folder`` with its bytes."""
     return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
@@ -124,9 +130,10 @@ def test_an_interrupted_figure_leaves_no_folder(result, tmp_path, monkeypatch):
 
 
 def test_ctrl_c_while_the_demo_writes_exits_130_and_keeps_the_old_report(
-    tmp_path, monkeypatch, capsys
+    result, tmp_path, monkeypatch, capsys
 ):
     out = tmp_path / "demo"
+    monkeypatch.setattr(lpvid, "identify", lambda *args, **kwargs: result)
     assert main(["demo", "--out", str(out), "--no-figures", "--quiet"]) == 0
     before = snapshot(out)
     monkeypatch.setattr(lpvid.report, "_markdown", interrupt)
