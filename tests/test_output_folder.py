@@ -201,3 +201,10 @@ def test_figures_still_drawing_finish_before_the_folder_is_removed(result, tmp_p
     assert written  # a job was running when Ctrl-C came, and finished
     assert not out.exists()
     assert leftovers(tmp_path, "report") == []
+
+
+def test_the_current_folder_is_never_replaced(result, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # empty: nothing else would stop it
+    with pytest.raises(FileExistsError, match="current folder"):
+        lpvid.report.write_report(result, ".", figures=False)
+    assert list(tmp_path.iterdir()) == []

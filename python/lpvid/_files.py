@@ -56,6 +56,9 @@ def check_replaceable(path: Path, names: Collection[str]) -> None:
         raise FileExistsError(f"{path} exists and is not a folder")
     if not path.is_dir():
         return
+    here = Path.cwd()
+    if path.resolve() in (here, *here.parents):
+        raise FileExistsError(f"{path} is the current folder or holds it: it cannot be replaced")
     foreign = sorted(e.name for e in path.iterdir() if e.name not in names)
     if foreign:
         raise FileExistsError(
