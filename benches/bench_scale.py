@@ -7,7 +7,9 @@ with ``lpvid.identify(data, n, basis, validation=...)`` as a user runs it.
 For every rung it prints the time of every identify stage, the mean LM
 iteration and cone step (with Clarabel's interior-point iterations), the
 number of steps, the chosen model's V_NLS and validation V_NLS against their
-noise floors and the groups kept, and the peak memory of the process.
+noise floors and the groups kept, and the peak memory of the process beside
+what it held before identify and lpvid's estimate of identify's peak
+(``lpvid.memory.pipeline_memory``, the figure identify checks before it runs).
 
 Each rung runs in a fresh process (peak memory is per rung). The machines
 are shared and noisy: compare medians over --repeat runs.
@@ -132,6 +134,8 @@ def run_one(name: str, cone_tol: float | None = None) -> dict:
     """One identify() of a rung, with its figures (in this process)."""
     data, validation, n, basis, note = problem(name)
     settings = None if cone_tol is None else lpvid.L21Settings(max_outer=10, cone_tol=cone_tol)
+    before_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    estimate_mb = lpvid.memory.pipeline_memory(data, n, basis)[0] / 2**20
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -161,6 +165,8 @@ def run_one(name: str, cone_tol: float | None = None) -> dict:
         "start": result.start,
         "warnings": [str(w.message) for w in caught],
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "before_mb": before_mb,
+        "estimate_mb": estimate_mb,
     }
 
 
@@ -168,7 +174,15 @@ def report(runs: list[dict]) -> None:
     first = runs[0]
     med = {
         k: statistics.median(r[k] for r in runs)
-        for k in ("identify_s", "lm_iter_s", "cone_step_s", "ip_iterations", "peak_mb")
+        for k in (
+            "identify_s",
+            "lm_iter_s",
+            "cone_step_s",
+            "ip_iterations",
+            "peak_mb",
+            "before_mb",
+            "estimate_mb",
+        )
     }
     stages = {
         k: statistics.median(r["timings"].get(k, 0.0) for r in runs) for k in first["timings"]
@@ -191,7 +205,11 @@ def report(runs: list[dict]) -> None:
         f"{first['nonzero_groups']}, V/floor {first['vnls_ratio']:.4f}, "
         f"validation V/floor {first['validation_ratio']:.4f}"
     )
-    print(f"peak memory {med['peak_mb']:.0f} MB")
+    print(
+        f"peak memory {med['peak_mb']:.0f} MB ({med['before_mb']:.0f} MB before identify: "
+        f"identify's own {med['peak_mb'] - med['before_mb']:.0f} MB against lpvid's estimate "
+        f"{med['estimate_mb']:.0f} MB)"
+    )
     for w in first["warnings"]:
         print(f"warning: {w}")
 

@@ -62,7 +62,9 @@ fn bench_steps(c: &mut Criterion) {
         "gantry: LM iteration (step, J^T J and V_NLS at the new point)",
         |b| {
             b.iter(|| {
-                let d = lpvid::lm::lm_step(&gn, &diag, mu).expect("step");
+                let d = lpvid::lm::lm_step(&gn, &diag, mu)
+                    .expect("memory")
+                    .expect("step");
                 let trial = free.add_step(&theta, &d);
                 black_box(problem.gauss_newton(&trial, &free).expect("gn"))
             })
@@ -93,7 +95,7 @@ fn bench_steps(c: &mut Criterion) {
         |b| {
             let mut solver = lpvid::socp::ConeSolver::default();
             b.iter(|| {
-                let step = cone.solve(mu, &mut solver);
+                let step = cone.solve(mu, &mut solver).expect("memory");
                 let d = step.step.expect("solved");
                 let trial = free.add_step(&theta, &d);
                 let v = problem.cost(&trial).expect("cost");

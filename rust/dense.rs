@@ -3,6 +3,8 @@
 //! more work ([`par_for`]: the Levenberg-Marquardt step and the cone step's
 //! Schur complement at n = 16 and more) use the whole thread pool.
 
+use crate::error::Result;
+use crate::memory::out_of_memory_for;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::triangular_solve::{
@@ -27,25 +29,32 @@ pub fn par_for(flops: f64) -> Par {
 }
 
 /// Lower Cholesky factor `L` of a symmetric positive definite matrix
-/// (`A = L L^T`), or `None` when `A` is not numerically positive definite.
+/// (`A = L L^T`), or `None` when `A` is not numerically positive definite
+/// ([`crate::Error::OutOfMemory`] when the factorisation's scratch space
+/// cannot be had).
 /// `L` is the lower triangle of the result; the strict upper triangle keeps
 /// `A`'s entries (the triangular solves below read the lower triangle
 /// only; clearing the other half cost a pass over the matrix, 1.3 million
 /// writes at n = 16 2x2).
-pub fn cholesky(mut a: Mat<f64>) -> Option<Mat<f64>> {
+pub fn cholesky(mut a: Mat<f64>) -> Result<Option<Mat<f64>>> {
     let n = a.nrows();
     let par = par_for((n * n * n) as f64 / 3.0);
-    let mut mem = MemBuffer::new(cholesky_in_place_scratch::<f64>(n, par, Default::default()));
+    let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
+    let mut mem = MemBuffer::try_new(req).map_err(|_| {
+        out_of_memory_for(
+            req.size_bytes(),
+            "the scratch space of a Cholesky factorisation",
+        )
+    })?;
     let stack = MemStack::new(&mut mem);
-    cholesky_in_place(
+    let factored = cholesky_in_place(
         a.as_mut(),
         Default::default(),
         par,
         stack,
         Default::default(),
-    )
-    .ok()?;
-    Some(a)
+    );
+    Ok(factored.ok().map(|_| a))
 }
 
 /// Solve `L L^T x = b` in place.
@@ -81,7 +90,7 @@ mod tests {
     #[test]
     fn cholesky_solves_a_known_system() {
         let a = Mat::from_fn(3, 3, |i, j| if i == j { 4.0 } else { 1.0 });
-        let raw = cholesky(a.clone()).unwrap();
+        let raw = cholesky(a.clone()).unwrap().unwrap();
         let l = lower(&raw);
         let back = &l * l.transpose();
         for i in 0..3 {
@@ -96,7 +105,7 @@ mod tests {
             assert!((ax[(i, 0)] - (i as f64 + 1.0)).abs() < 1e-13);
         }
         let indefinite = Mat::from_fn(2, 2, |i, j| if i == j { 1.0 } else { 2.0 });
-        assert!(cholesky(indefinite).is_none());
+        assert!(cholesky(indefinite).unwrap().is_none());
     }
 
     #[test]
@@ -105,7 +114,7 @@ mod tests {
         let n = 300;
         let mut rng = crate::testing::Lcg(5);
         let b = Mat::from_fn(n, n + 10, |_, _| rng.next_f64());
-        let raw = cholesky(&b * b.transpose()).unwrap();
+        let raw = cholesky(&b * b.transpose()).unwrap().unwrap();
         let l = lower(&raw);
         let rhs = Mat::from_fn(n, 2, |_, _| rng.next_f64());
         let solved = |f: &Mat<f64>, which: usize| {
@@ -138,7 +147,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| cholesky(a.clone()).unwrap())
+                .install(|| cholesky(a.clone()).unwrap().unwrap())
         };
         let (one, two) = (on(1), on(2));
         let differ = (0..n)

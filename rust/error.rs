@@ -52,6 +52,31 @@ pub enum Error {
     /// The run was stopped by the caller (for example Ctrl-C in Python).
     #[error("interrupted")]
     Interrupted,
+    /// A large array could not be allocated: the memory left (or the
+    /// address-space limit) is smaller than what the run needs.
+    #[error(
+        "out of memory: could not allocate {} for {what}",
+        crate::memory::human(*bytes)
+    )]
+    OutOfMemory {
+        /// Size of the allocation that failed, in bytes.
+        bytes: usize,
+        /// What the array was for.
+        what: &'static str,
+    },
+    /// A bug: the core panicked (the panic is caught at the boundary and
+    /// reported with its message).
+    #[error("internal error in the lpvid core (please report it): {0}")]
+    Internal(String),
+}
+
+impl Error {
+    /// Whether the error is about the machine rather than the model: out of
+    /// memory, or an internal error. A fit never takes such an error for a
+    /// rejected step: it stops and returns it.
+    pub fn is_fatal(&self) -> bool {
+        matches!(self, Error::OutOfMemory { .. } | Error::Internal(_))
+    }
 }
 
 /// Result type of the lpvid core.
@@ -62,5 +87,68 @@ pub(crate) fn invalid(name: &'static str, message: impl Into<String>) -> Error {
     Error::InvalidArgument {
         name,
         message: message.into(),
+    }
+}
+
+/// Run `f`, turning a panic into an error: [`Error::OutOfMemory`] when the
+/// panic was a failed allocation (faer's constructors panic so), else
+/// [`Error::Internal`] with the panic's message. The entry points of the
+/// Python binding run the core through this, so that no panic reaches
+/// Python.
+pub fn catch_panic<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => Err(from_panic(payload.as_ref())),
+    }
+}
+
+/// The error for a caught panic's payload.
+fn from_panic(payload: &(dyn std::any::Any + Send)) -> Error {
+    let message = payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".to_string());
+    if message.contains("AllocError") || message.contains("capacity overflow") {
+        // faer: "... AllocError { layout: Layout { size: 28682688, align: 64 ... } }".
+        let bytes = message
+            .split("size: ")
+            .nth(1)
+            .and_then(|rest| rest.split(|c: char| !c.is_ascii_digit()).next())
+            .and_then(|digits| digits.parse().ok())
+            .unwrap_or(usize::MAX);
+        return Error::OutOfMemory {
+            bytes,
+            what: "an array of the core",
+        };
+    }
+    Error::Internal(message)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_becomes_an_error() {
+        let e = catch_panic::<()>(|| panic!("index 7 out of range")).unwrap_err();
+        assert_eq!(e, Error::Internal("index 7 out of range".to_string()));
+        assert!(e.is_fatal());
+        let e = catch_panic::<()>(|| {
+            let layout = 28682688usize;
+            panic!("called `Result::unwrap()` on an `Err` value: AllocError {{ layout: Layout {{ size: {layout}, align: 64 }} }}")
+        })
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::OutOfMemory {
+                    bytes: 28682688,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert_eq!(catch_panic(|| Ok(3)), Ok(3));
     }
 }

@@ -24,9 +24,11 @@
 //! `lti^2` times `2 l r` per line) this takes `2 max(l, r)` times fewer
 //! flops: 4x on a 2x2 system, 6x on a 3x3.
 
+use crate::error::Result;
 use crate::lanes::{Cx, LANES};
 use crate::layout::{Matrix, Shape};
 use crate::lti::Resolvent;
+use crate::memory::{try_vec, try_zeros};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatRef, Par};
 
@@ -84,31 +86,58 @@ pub struct GramParts {
 }
 
 impl KronGram {
-    /// An empty accumulator for a model of the given shape.
-    pub fn new(shape: &Shape) -> Self {
+    /// An empty accumulator for a model of the given shape, or
+    /// [`crate::Error::OutOfMemory`].
+    pub fn new(shape: &Shape) -> Result<Self> {
         let Shape { n, r, l, .. } = *shape;
         let (da, db) = (n + l, n + r);
         let by_output = l <= r;
-        let groups = l.min(r);
-        let cols = BLOCK_SAMPLES.div_ceil(groups * LANES) * groups * LANES;
-        KronGram {
+        let cols = Self::block_columns(shape);
+        let (s1, s2) = Self::sums(shape)?;
+        let samples = "the sample buffers of a Gram accumulator";
+        Ok(KronGram {
             n,
             l,
             r,
             by_output,
             u: vec![Cx::default(); l * da],
             v: vec![Cx::default(); r * db],
-            u_re: vec![0.0; packed(da) * cols],
-            u_im: vec![0.0; strict(da) * cols],
-            v_re: vec![0.0; packed(db) * cols],
-            v_im: vec![0.0; strict(db) * cols],
+            u_re: try_vec(packed(da) * cols, 0.0, samples)?,
+            u_im: try_vec(strict(da) * cols, 0.0, samples)?,
+            v_re: try_vec(packed(db) * cols, 0.0, samples)?,
+            v_im: try_vec(strict(db) * cols, 0.0, samples)?,
             filled: 0,
-            s1: Mat::zeros(packed(db), packed(da)),
-            s2: Mat::zeros(strict(db), strict(da)),
+            s1,
+            s2,
             jtr: vec![[0.0; LANES]; da * db],
             squares: vec![[0.0; LANES]; l.max(r)],
             t: vec![Cx::default(); db],
-        }
+        })
+    }
+
+    /// Columns of the sample buffers (samples per matrix product).
+    pub fn block_columns(shape: &Shape) -> usize {
+        let groups = shape.l.min(shape.r);
+        BLOCK_SAMPLES.div_ceil(groups * LANES) * groups * LANES
+    }
+
+    /// Zero `S1` and `S2` for a model of the given shape.
+    fn sums(shape: &Shape) -> Result<(Mat<f64>, Mat<f64>)> {
+        let (da, db) = (shape.n + shape.l, shape.n + shape.r);
+        let what = "the Gram pieces S1, S2 of a block of lines";
+        Ok((
+            try_zeros(packed(db), packed(da), what)?,
+            try_zeros(strict(db), strict(da), what)?,
+        ))
+    }
+
+    /// Bytes of one accumulator (its buffers and sums) for a model of the
+    /// given shape.
+    pub fn bytes(shape: &Shape) -> usize {
+        let (da, db) = (shape.n + shape.l, shape.n + shape.r);
+        let buffers =
+            (packed(da) + strict(da) + packed(db) + strict(db)) * Self::block_columns(shape);
+        8 * buffers + GramParts::bytes(shape)
     }
 
     /// Columns of the sample buffers.
@@ -226,8 +255,16 @@ impl KronGram {
 
     /// Everything added since the last call, which leaves the accumulator
     /// empty for the next lines (its sample buffers are kept: every column
-    /// is written before it is read).
-    pub fn finish(&mut self, shape: &Shape) -> GramParts {
+    /// is written before it is read); [`crate::Error::OutOfMemory`] when
+    /// the next lines' sums cannot be had (the accumulator is then empty).
+    pub fn finish(&mut self, shape: &Shape) -> Result<GramParts> {
+        let (s1, s2) = match Self::sums(shape) {
+            Ok(fresh) => fresh,
+            Err(e) => {
+                self.clear();
+                return Err(e);
+            }
+        };
         self.flush();
         let da = self.n + self.l;
         let mut jtr = vec![0.0; shape.lti_len()];
@@ -235,15 +272,19 @@ impl KronGram {
             jtr[lti_index(shape, ab % da, ab / da)] = g.iter().sum();
             *g = [0.0; LANES];
         }
-        let (rows, cols) = (self.s1.nrows(), self.s1.ncols());
-        let s1 = std::mem::replace(&mut self.s1, Mat::zeros(rows, cols));
-        let (rows, cols) = (self.s2.nrows(), self.s2.ncols());
-        let s2 = std::mem::replace(&mut self.s2, Mat::zeros(rows, cols));
-        GramParts { s1, s2, jtr }
+        let s1 = std::mem::replace(&mut self.s1, s1);
+        let s2 = std::mem::replace(&mut self.s2, s2);
+        Ok(GramParts { s1, s2, jtr })
     }
 }
 
 impl GramParts {
+    /// Bytes of one part (`S1`, `S2` and `J^T r`) for a model of the given shape.
+    pub fn bytes(shape: &Shape) -> usize {
+        let (da, db) = (shape.n + shape.l, shape.n + shape.r);
+        8 * (packed(db) * packed(da) + strict(db) * strict(da) + shape.lti_len())
+    }
+
     /// Add another part of the same point.
     pub fn merge(&mut self, other: &GramParts) {
         self.s1 += &other.s1;
@@ -254,12 +295,13 @@ impl GramParts {
             .for_each(|(x, y)| *x += y);
     }
 
-    /// `J^T J` over `[vec A; vec B; vec C; vec D]`, column-major, both triangles.
-    pub fn gram(&self, shape: &Shape) -> Vec<f64> {
+    /// `J^T J` over `[vec A; vec B; vec C; vec D]`, column-major, both
+    /// triangles, or [`crate::Error::OutOfMemory`].
+    pub fn gram(&self, shape: &Shape) -> Result<Vec<f64>> {
         let Shape { n, r, l, .. } = *shape;
         let (da, db) = (n + l, n + r);
         let lti = shape.lti_len();
-        let mut h = vec![0.0; lti * lti];
+        let mut h = try_vec(lti * lti, 0.0, "the Gram matrix of one scheduling point")?;
         let mut put = |x: usize, y: usize, v: f64| {
             h[x + y * lti] = v;
             h[y + x * lti] = v;
@@ -281,7 +323,7 @@ impl GramParts {
                 }
             }
         }
-        h
+        Ok(h)
     }
 }
 

@@ -17,6 +17,7 @@ pub mod lanes;
 pub mod layout;
 pub mod lm;
 pub mod lti;
+pub mod memory;
 pub mod objective;
 pub mod problem;
 pub mod response;

@@ -10,8 +10,9 @@ use crate::fit::{
     check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
 };
 use crate::layout::FreeSet;
+use crate::memory::try_mat;
 use crate::objective::{GaussNewton, Objective};
-use faer::{Mat, MatRef};
+use faer::Mat;
 use std::time::Instant;
 
 /// Settings of [`levenberg_marquardt`].
@@ -76,19 +77,27 @@ pub fn marquardt_diagonal(gn: &GaussNewton) -> Vec<f64> {
 }
 
 /// Solve `(J^T J + mu D) d = -J^T r`; `None` when the matrix is not
-/// numerically positive definite.
-pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Option<Vec<f64>> {
+/// numerically positive definite, [`crate::Error::OutOfMemory`] when its
+/// factor cannot be had.
+pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64>>> {
     let m = gn.dim();
     // A copy (the factorisation overwrites it), then the diagonal.
-    let mut mat = MatRef::from_column_major_slice(&gn.gram, m, m).to_owned();
+    let mut mat = try_mat(
+        m,
+        m,
+        |i, j| gn.gram[i + j * m],
+        "the factor of the Levenberg-Marquardt step",
+    )?;
     for (i, d) in diag.iter().enumerate() {
         mat[(i, i)] = gn.gram[i + i * m] + mu * d;
     }
-    let l = cholesky(mat)?;
+    let Some(l) = cholesky(mat)? else {
+        return Ok(None);
+    };
     let mut d = Mat::from_fn(m, 1, |i, _| -0.5 * gn.gradient[i]);
     cholesky_solve(&l, d.as_mut());
     let d: Vec<f64> = (0..m).map(|i| d[(i, 0)]).collect();
-    d.iter().all(|v| v.is_finite()).then_some(d)
+    Ok(d.iter().all(|v| v.is_finite()).then_some(d))
 }
 
 /// Predicted decrease of V_NLS for step `d`: `-(g^T d + d^T J^T J d)`.
@@ -105,6 +114,17 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
         quad += d[j] * col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>();
     }
     -(gd + quad)
+}
+
+/// The evaluation at a trial point: `None` when the model cannot be
+/// evaluated there (a rejected step), the error when the machine failed
+/// ([`crate::Error::is_fatal`]: out of memory, a bug).
+pub(crate) fn trial_point(eval: Result<GaussNewton>) -> Result<Option<GaussNewton>> {
+    match eval {
+        Ok(gn) => Ok(Some(gn)),
+        Err(e) if e.is_fatal() => Err(e),
+        Err(_) => Ok(None),
+    }
 }
 
 /// Levenberg-Marquardt from `theta0` over the free parameters.
@@ -148,7 +168,7 @@ pub fn levenberg_marquardt(
         }
         let t0 = Instant::now();
         let lambda = damping.lambda();
-        let step = lm_step(&gn, &diag, damping.mu);
+        let step = lm_step(&gn, &diag, damping.mu)?;
         let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
         let mut status = "not positive definite";
         let mut new_theta = None;
@@ -161,8 +181,8 @@ pub fn levenberg_marquardt(
             // Most steps are taken (the damping follows the gain ratio), so
             // the Jacobian at the trial point is evaluated with its V_NLS
             // rather than after it. A singular frozen model at the trial
-            // point is a rejected step.
-            if let Ok(cand) = problem.gauss_newton(&trial, free) {
+            // point is a rejected step; running out of memory is not.
+            if let Some(cand) = trial_point(problem.gauss_newton(&trial, free))? {
                 let v = cand.vnls;
                 rho = (gn.vnls - v) / predicted;
                 if v.is_finite() && v < gn.vnls && predicted > 0.0 {

@@ -12,6 +12,7 @@ use crate::kron_gram::{GramParts, KronGram};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::memory::try_vec;
 use crate::objective::{GaussNewton, Objective};
 use crate::response::with_constant;
 use num_complex::Complex64 as C64;
@@ -19,6 +20,12 @@ use rayon::prelude::*;
 
 /// Real residuals per task (the unit of parallel work).
 const TASK_COLUMNS: usize = 1024;
+
+/// Frequency lines per task: about [`TASK_COLUMNS`] real residuals, whole
+/// batches of [`LANES`] lines.
+pub(crate) fn lines_per_task(shape: &Shape) -> usize {
+    (TASK_COLUMNS / (2 * shape.l * shape.r * LANES)).max(1) * LANES
+}
 
 /// Shape, data and basis values of one identification problem.
 #[derive(Debug, Clone)]
@@ -97,7 +104,7 @@ impl Problem {
     pub fn residual(&self, theta: &[f64]) -> Result<Vec<C64>> {
         self.shape.check_theta(theta)?;
         let forms = self.forms(theta);
-        let mut out = vec![C64::new(0.0, 0.0); self.n_residuals()];
+        let mut out = try_vec(self.n_residuals(), C64::new(0.0, 0.0), "the residuals")?;
         self.split(&mut out).into_par_iter().try_for_each_init(
             || Resolvent::new(&self.shape),
             |res, (task, slice)| {
@@ -125,13 +132,16 @@ impl Problem {
         }
         let forms = self.forms(theta);
         let lti = self.shape.lti_len();
-        let mut residual = vec![C64::new(0.0, 0.0); self.n_residuals()];
+        let mut residual = try_vec(self.n_residuals(), C64::new(0.0, 0.0), "the residuals")?;
         let parts = self
             .split(&mut residual)
             .into_par_iter()
             .map_init(
                 || Workspace::new(&self.shape),
-                |ws, (task, slice)| self.task_gram(&forms[task.point], task, slice, ws),
+                |ws, (task, slice)| match ws {
+                    Ok(ws) => self.task_gram(&forms[task.point], task, slice, ws),
+                    Err(e) => Err(e.clone()),
+                },
             )
             .collect::<Result<Vec<_>>>()?;
         // Sum the tasks of every point and unfold its Gram matrix, the
@@ -141,19 +151,21 @@ impl Problem {
         for part in parts {
             by_point[part.point].push(part.parts);
         }
-        let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = by_point
+        let unfolded = by_point
             .into_par_iter()
             .map(|tasks| {
                 let mut tasks = tasks.into_iter();
                 let Some(mut sum) = tasks.next() else {
-                    return (vec![0.0; lti * lti], vec![0.0; lti]);
+                    let empty = "the Gram matrix of one scheduling point";
+                    return Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]));
                 };
                 tasks.for_each(|t| sum.merge(&t));
-                (sum.gram(&self.shape), sum.jtr)
+                Ok((sum.gram(&self.shape)?, sum.jtr))
             })
-            .unzip();
+            .collect::<Result<Vec<_>>>()?;
+        let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
-        let (gradient, gram) = self.assemble(&grams, &jtr, free);
+        let (gradient, gram) = self.assemble(&grams, &jtr, free)?;
         Ok(GaussNewton {
             vnls,
             gradient,
@@ -173,7 +185,7 @@ impl Problem {
     fn split<'a>(&self, out: &'a mut [C64]) -> Vec<(Task, &'a mut [C64])> {
         let lr = self.shape.l * self.shape.r;
         let nf = self.data.n_lines();
-        let per_task = (TASK_COLUMNS / (2 * lr * LANES)).max(1) * LANES;
+        let per_task = lines_per_task(&self.shape);
         let mut rest = out;
         let mut tasks = Vec::new();
         for point in 0..self.data.n_points() {
@@ -261,7 +273,7 @@ impl Problem {
         }
         Ok(TaskGram {
             point: q,
-            parts: acc.finish(&self.shape),
+            parts: acc.finish(&self.shape)?,
         })
     }
 
@@ -276,7 +288,7 @@ impl Problem {
         full: &[Vec<f64>],
         jtr: &[Vec<f64>],
         free: &FreeSet,
-    ) -> (Vec<f64>, Vec<f64>) {
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
         let lti = self.shape.lti_len();
         let m = self.shape.n_coef();
         let n_points = self.data.n_points();
@@ -288,20 +300,23 @@ impl Problem {
         let sums: Vec<Vec<f64>> = pairs
             .par_iter()
             .map(|&(i, j)| {
+                let mut s = try_vec(lti * lti, 0.0, "the Gram sum of a pair of basis functions")?;
                 // The first term written, the others added (no pass of zeros).
-                let mut s: Option<Vec<f64>> = None;
+                let mut first = true;
                 for (q, hq) in full.iter().enumerate().take(n_points) {
                     let c = self.psi(q)[i] * self.psi(q)[j];
                     if c != 0.0 {
-                        match s.as_mut() {
-                            None => s = Some(hq.iter().map(|h| c * h).collect()),
-                            Some(s) => s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h),
+                        if first {
+                            s.iter_mut().zip(hq).for_each(|(d, h)| *d = c * h);
+                            first = false;
+                        } else {
+                            s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h);
                         }
                     }
                 }
-                s.unwrap_or_else(|| vec![0.0; lti * lti])
+                Ok(s)
             })
-            .collect();
+            .collect::<Result<_>>()?;
         // Pair (i, j), i <= j, at slot i m + j of `sums`.
         let mut slot = vec![0; m * m];
         for (k, &(i, j)) in pairs.iter().enumerate() {
@@ -309,7 +324,7 @@ impl Problem {
         }
         // Entry (a, b) is S_ij[p_a, p_b] with i <= j the two basis indices
         // (S_ij is symmetric as every H_q is): whole columns, in parallel.
-        let mut gram = vec![0.0; nf * nf];
+        let mut gram = try_vec(nf * nf, 0.0, "the Gauss-Newton matrix J^T J")?;
         gram.par_chunks_mut(nf.max(1))
             .zip(&map)
             .for_each(|(col, &(j, pv))| {
@@ -327,7 +342,7 @@ impl Problem {
                     .sum::<f64>()
             })
             .collect();
-        (gradient, gram)
+        Ok((gradient, gram))
     }
 }
 
@@ -339,11 +354,11 @@ struct Workspace {
 }
 
 impl Workspace {
-    fn new(shape: &Shape) -> Self {
-        Workspace {
+    fn new(shape: &Shape) -> Result<Self> {
+        Ok(Workspace {
             resolvent: Resolvent::new(shape),
-            gram: KronGram::new(shape),
-        }
+            gram: KronGram::new(shape)?,
+        })
     }
 }
 

@@ -59,7 +59,8 @@ where
     let psi = with_constant(basis, n_points, shape.nb)?;
     let m = shape.n_coef();
     let stride = z.len() * per_line;
-    let mut out = vec![C64::new(0.0, 0.0); n_points * stride];
+    let what = "the frequency responses (or their derivatives) at every point and line";
+    let mut out = crate::memory::try_vec(n_points * stride, C64::new(0.0, 0.0), what)?;
     if stride == 0 {
         return Ok(out);
     }

@@ -268,6 +268,7 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
     };
     let step = cone
         .solve(mu, &mut ConeSolver::new(1e-10))
+        .expect("memory")
         .step
         .expect("solved");
     // Closed form: eliminate the ungrouped part, d_U = -(q_U + W^T d_G);

@@ -34,6 +34,7 @@ from lpvid.initial.orders import OrderHints, order_hints
 from lpvid.initial.smile import smile
 from lpvid.layout import fixed_mask, free_mask
 from lpvid.measure import Multisine, estimate_frf, multisine
+from lpvid.memory import available_memory, fit_memory
 from lpvid.model import LpvModel
 from lpvid.pipeline import identify
 from lpvid.results import FitResult, L21Result, PathResult
@@ -75,12 +76,14 @@ __all__ = [
     "TimeCost",
     "TimeData",
     "__version__",
+    "available_memory",
     "consistency",
     "covariance",
     "datasets",
     "estimate_frf",
     "fd_subspace",
     "fit_l21",
+    "fit_memory",
     "fit_nls",
     "fit_time",
     "fixed_mask",

@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import lpvid
+from lpvid._files import check_replaceable
+from lpvid.report import REPORT_ENTRIES
 
 __all__ = [
     "EXIT_MISUSE",
@@ -178,6 +180,11 @@ def out_dir(out: str) -> None:
         raise Misuse(f"--out: cannot create {out}: {existing} is not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise Misuse(f"--out: cannot write into {existing} (permission denied)")
+    # The report replaces an earlier one whole; a folder with other files is kept.
+    try:
+        check_replaceable(path, REPORT_ENTRIES)
+    except FileExistsError as exc:
+        raise Misuse(f"--out: {exc}") from exc
 
 
 def fixed_of(names: list[str]) -> dict[str, bool] | None:

@@ -28,6 +28,8 @@ __all__ = [
     "l21_defaults",
     "l21_path",
     "simulate",
+    "fit_memory",
+    "_fail_allocation_after",
 ]
 
 __version__: str
@@ -188,3 +190,17 @@ def cone_step(
     settings: _Settings,
     mu: float,
 ) -> dict[str, Any]: ...
+def fit_memory(
+    n: int,
+    r: int,
+    l: int,
+    nb: int,
+    method: str,
+    free: NDArray[np.bool_] | None = None,
+    frf: tuple[int, int] | None = None,
+    records: list[int] | None = None,
+    hold: bool = False,
+    estimate_x0: bool = False,
+    pinned: bool = False,
+) -> dict[str, int]: ...
+def _fail_allocation_after(count: int | None = None) -> None: ...

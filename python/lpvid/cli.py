@@ -275,7 +275,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Misuse as exc:
         print(f"lpvid {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_MISUSE
-    except OSError as exc:
+    except (OSError, MemoryError) as exc:
         print(f"lpvid {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -17,6 +17,7 @@ import signal
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures import wait as wait_for
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -27,7 +28,7 @@ from lpvid.identified import IdentifyResult
 
 T = TypeVar("T")
 
-__all__ = ["FigureJob", "report_jobs", "draw", "start_drawing", "FigurePool"]
+__all__ = ["Drawing", "FigureJob", "report_jobs", "draw", "start_drawing", "FigurePool"]
 
 
 @dataclass(frozen=True)
@@ -137,34 +138,58 @@ def draw(job: FigureJob, folder: Path) -> Path:
     return plots.save(getattr(plots, job.builder)(*job.args, **job.kwargs), folder / job.name)
 
 
-def start_drawing(
-    jobs: Sequence[FigureJob], folder: Path, pool: Executor | None = None
-) -> Callable[[], list[tuple[str, str]]]:
-    """Start drawing ``jobs`` into ``folder``; returns the call that waits for them.
+class Drawing:
+    """Figures being drawn (:func:`start_drawing`): call it to wait for them."""
+
+    def __init__(
+        self, jobs: Sequence[FigureJob], folder: Path, pool: Executor | None = None
+    ) -> None:
+        self.jobs, self.folder, self.pool = list(jobs), folder, pool
+        folder.mkdir(parents=True, exist_ok=True)
+        self.futures: list[Future[Path]] = (
+            [pool.submit(draw, job, folder) for job in self.jobs] if pool else []
+        )
+
+    def __call__(self) -> list[tuple[str, str]]:
+        """Wait: (caption, path relative to the folder's parent) of every figure.
+
+        Raises the first failure (cancelling the jobs not yet started); an
+        interruption is raised as it is.
+        """
+        if self.pool is None:
+            for job in self.jobs:
+                draw(job, self.folder)
+        try:
+            for fut in self.futures:
+                fut.result()
+        except BaseException:
+            self.abandon()
+            raise
+        return [(job.caption, f"{self.folder.name}/{job.name}") for job in self.jobs]
+
+    def abandon(self) -> None:
+        """Cancel the jobs not started and wait for those running (their outcome dropped).
+
+        After it no worker writes into the folder any more: the caller may
+        remove it.
+        """
+        for fut in self.futures:
+            fut.cancel()
+        running = [f for f in self.futures if not f.cancelled()]
+        wait_for(running)
+
+
+def start_drawing(jobs: Sequence[FigureJob], folder: Path, pool: Executor | None = None) -> Drawing:
+    """Start drawing ``jobs`` into ``folder``; returns the :class:`Drawing` to wait for.
 
     With a ``pool``, the jobs are submitted now and run while the caller goes
     on; without, they are drawn here, one after the other, when the returned
-    call is made. That call returns (caption, path relative to the folder's
+    call is made. The call returns (caption, path relative to the folder's
     parent) pairs once every figure is written, or raises the first failure
     (cancelling the jobs not yet started); an interruption is raised as it is.
+    ``abandon()`` stops the drawing (for a caller that gives up the folder).
     """
-    folder.mkdir(parents=True, exist_ok=True)
-    futures: list[Future[Path]] = [pool.submit(draw, job, folder) for job in jobs] if pool else []
-
-    def wait() -> list[tuple[str, str]]:
-        if pool is None:
-            for job in jobs:
-                draw(job, folder)
-        try:
-            for fut in futures:
-                fut.result()
-        except BaseException:
-            for fut in futures:
-                fut.cancel()
-            raise
-        return [(job.caption, f"{folder.name}/{job.name}") for job in jobs]
-
-    return wait
+    return Drawing(jobs, folder, pool)
 
 
 #: Modules the forkserver imports before it forks workers (none picks a backend).

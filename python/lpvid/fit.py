@@ -18,6 +18,7 @@ from lpvid._checks import positive_float, positive_int, real_array
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
 from lpvid.layout import free_mask
+from lpvid.memory import check_fit
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
@@ -195,10 +196,16 @@ def fit_nls(
     ValueError
         On bad arguments, when V_NLS is not finite at the start, or with
         ``stable=True`` when the start is not stable over the range.
+    MemoryError
+        Before any work when the fit needs more memory than the process may
+        allocate (the estimate of :func:`lpvid.fit_memory` against
+        :func:`lpvid.available_memory`), and when an allocation in the core
+        fails all the same.
     """
     settings = lm_settings(max_iter, xtol, ftol, gtol, lambda0)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
+    check_fit("fit_nls", model, data, free, "lm", time_data)
     raw = _stable_run(
         model,
         stable,
@@ -364,12 +371,16 @@ def fit_l21(
     ValueError, TypeError
         On bad arguments (an unknown option names itself), or when V_NLS is
         not finite at the start.
+    MemoryError
+        As :func:`fit_nls` (the cone programs need more: see
+        :mod:`lpvid.memory`).
     """
     g = positive_float(gamma, "gamma", allow_zero=True)
     s = L21Settings.of(settings, **options)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
+    check_fit("fit_l21", model, data, free, "l21" if g > 0 else "lm", time_data, bool(pinned))
     pin = _pinned(model, data, free, pinned)
     raw = _stable_run(
         model,
@@ -433,6 +444,11 @@ def l21_path(
     -------
     PathResult
         One :class:`L21Result` per gamma, largest gamma first.
+
+    Raises
+    ------
+    MemoryError
+        As :func:`fit_l21`.
     """
     gs = real_array(gammas, "gammas", ndim=1)
     if gs.size == 0 or np.any(gs < 0):
@@ -442,6 +458,7 @@ def l21_path(
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
     pin = _check_flag(pinned, "pinned")
+    check_fit("l21_path", model, data, free, "l21", time_data, pin)
 
     def one(m: LpvModel, g: float, check: Any = None) -> dict[str, Any]:
         flat = _pinned(m, data, free, pin)

@@ -28,6 +28,7 @@ from lpvid.initial.choice import choose
 from lpvid.initial.local import identify_lti
 from lpvid.judge import identify_range, noise_slack, tied
 from lpvid.layout import strictly_proper
+from lpvid.memory import check_pipeline
 from lpvid.pathfit import run_path
 from lpvid.results import PathResult
 from lpvid.settings import L21Settings
@@ -255,6 +256,23 @@ def identify(
     ValueError
         On bad arguments, and when the start chosen on the FRFs diverges
         along a time record (the message names the record and the sample).
+    MemoryError
+        Before any work, when the run needs more memory than the process
+        may allocate (:func:`lpvid.available_memory`). Its peak is that of
+        its largest fit, every parameter free: with ``P = (Nb + 1)(n + l)
+        (n + r)`` parameters, ``L = (n + l)(n + r)`` per LTI model and
+        ``F_t = 4 floor(128 / (l r))`` lines per block, about ``8 P^2`` bytes
+        for ``J^T J`` and as much again during a Levenberg-Marquardt step or
+        ``144 K^2`` (``K = Nb P / (Nb + 1)``: two cone programs at once) during
+        an l2,1 step, plus one evaluation: ``4 L^2 N ceil(F / F_t)`` for the
+        Gram pieces of the blocks of lines or ``8 L^2 (N + (Nb + 1)(Nb + 2)
+        / 2) + 8 P^2`` for the points' Gram matrices, their sums and
+        ``J^T J``; with ``refit``, ``64 P^2`` for the covariance; then half
+        as much again and 64 MB for what the allocator holds back and the
+        first run's modules (:func:`lpvid.memory.resident`). At n = 16 2x2
+        (N = 9, F = 500) that is 529 MB, n = 24 3x3 (N = 9, F = 1000)
+        1.47 GB; ``benches/bench_scale.py`` measured 409-465 MB and 1.29 GB
+        of growth (:func:`lpvid.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
     if not isinstance(data, FrfData):
@@ -277,6 +295,7 @@ def identify(
             f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
         )
     check_order(n, basis, data, fixed)
+    check_pipeline("identify", data, n, basis, time_cost, refit)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")

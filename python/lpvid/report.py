@@ -5,19 +5,39 @@ from __future__ import annotations
 import json
 import os
 from concurrent.futures import Executor
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from lpvid._files import write_atomic
+from lpvid._files import write_atomic, write_folder_atomic
 from lpvid.figures import FigurePool, report_jobs, start_drawing
 from lpvid.identified import IdentifyResult
 from lpvid.selected import SelectResult, basis_label
 from lpvid.trust.stability import stability
 from lpvid.trust.steps import refit_line
 
-__all__ = ["FigurePool", "write_report", "key_numbers", "select_numbers", "write_select_report"]
+__all__ = [
+    "FigurePool",
+    "REPORT_ENTRIES",
+    "write_report",
+    "key_numbers",
+    "select_numbers",
+    "write_select_report",
+]
+
+#: What a report folder holds (:func:`write_report`, :func:`write_select_report`):
+#: a folder holding anything else is not replaced.
+REPORT_ENTRIES = (
+    "report.md",
+    "model.json",
+    "model.mat",
+    "result.json",
+    "figures",
+    "select.md",
+    "grid.json",
+)
 
 
 def key_numbers(result: IdentifyResult) -> dict[str, Any]:
@@ -78,10 +98,16 @@ def write_report(
 ) -> Path:
     """Write a Markdown report, its figures, the model files and the key numbers.
 
-    Files written to ``out_dir`` (created when missing), each whole or not
-    at all: ``report.md``, ``model.json`` (lpvid's model file),
-    ``model.mat`` (MATLAB), ``result.json`` (:func:`key_numbers`) and, when
-    ``figures`` and matplotlib is installed, PNG figures in ``figures/``.
+    Files written to ``out_dir``: ``report.md``, ``model.json`` (lpvid's
+    model file), ``model.mat`` (MATLAB), ``result.json``
+    (:func:`key_numbers`) and, when ``figures`` and matplotlib is installed,
+    PNG figures in ``figures/``. The folder is written whole or not at all:
+    everything goes into a temporary folder beside it, which takes its place
+    once complete; an error or Ctrl-C on the way leaves ``out_dir`` as it
+    was. A folder already there is replaced, once the new one is complete,
+    when it holds nothing but the entries of :data:`REPORT_ENTRIES` (an
+    earlier report); holding anything else it raises FileExistsError before
+    anything is written.
 
     Parameters
     ----------
@@ -111,28 +137,55 @@ def write_report(
         The path of ``report.md``.
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    text = _Text(title, description, figures, _labels(inputs, outputs, p_label))
+
+    def fill(folder: Path) -> None:
+        _fill_report(result, folder, text, pool)
+
+    write_folder_atomic(out, fill, REPORT_ENTRIES)
+    return out / "report.md"
+
+
+@dataclass(frozen=True)
+class _Text:
+    """What a report says besides the result: title, description, figures and their labels."""
+
+    title: str
+    description: str | None
+    figures: bool
+    labels: dict[str, Any]
+
+
+def _labels(inputs: Any, outputs: Any, p_label: str | None) -> dict[str, Any]:
+    """The figures' labels that were given."""
+    given = (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
+    return {k: v for k, v in given if v is not None}
+
+
+def _fill_report(result: IdentifyResult, out: Path, text: _Text, pool: Executor | None) -> None:
+    """Write the files of :func:`write_report` into the (new) folder ``out``."""
     result.model.save(out / "model.json")
     result.model.save(out / "model.mat")
-    numbers = key_numbers(result)
-    text = json.dumps(numbers, indent=1, allow_nan=True).encode()
-    write_atomic(out / "result.json", lambda fh: fh.write(text))
+    numbers = json.dumps(key_numbers(result), indent=1, allow_nan=True).encode()
+    write_atomic(out / "result.json", lambda fh: fh.write(numbers))
     drawn: list[tuple[str, str]] = []
     figure_note = ""
-    labels = {
-        k: v
-        for k, v in (("inputs", inputs), ("outputs", outputs), ("p_label", p_label))
-        if v is not None
-    }
-    wait = start_drawing(report_jobs(result, labels), out / "figures", pool) if figures else None
-    trust = _trust(result)  # while the pool draws
-    if wait is not None:
-        try:
-            drawn = wait()
-        except ImportError as exc:
-            figure_note = f"(figures skipped: {exc})"
-    md = _markdown(result, title, description, drawn, figure_note, trust)
-    return write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
+    jobs = report_jobs(result, text.labels)
+    wait = start_drawing(jobs, out / "figures", pool) if text.figures else None
+    try:
+        trust = _trust(result)  # while the pool draws
+        if wait is not None:
+            try:
+                drawn = wait()
+            except ImportError as exc:
+                figure_note = f"(figures skipped: {exc})"
+    except BaseException:
+        # No worker may write into the folder once the caller removes it.
+        if wait is not None:
+            wait.abandon()
+        raise
+    md = _markdown(result, text.title, text.description, drawn, figure_note, trust)
+    write_atomic(out / "report.md", lambda fh: fh.write(md.encode()))
 
 
 def _trust(result: IdentifyResult) -> list[str]:
@@ -293,7 +346,8 @@ def write_select_report(
     ``result.json``, figures), then ``select.md`` (the grid table, the
     summary and the figure of :func:`lpvid.plots.select_grid` as
     ``figures/select.png`` when ``figures`` and matplotlib is installed) and
-    ``grid.json`` (:func:`select_numbers`), each whole or not at all.
+    ``grid.json`` (:func:`select_numbers`). The folder is written whole or
+    not at all, and replaces one already there as in :func:`write_report`.
 
     Parameters
     ----------
@@ -310,18 +364,18 @@ def write_select_report(
         The path of ``select.md``.
     """
     out = Path(out_dir)
-    write_report(
-        sel.best,
-        out,
-        title=f"{title}: the chosen model ({sel.row.label})",
-        description=description,
-        figures=figures,
-        inputs=inputs,
-        outputs=outputs,
-        p_label=p_label,
-    )
-    text = json.dumps(select_numbers(sel), indent=1, allow_nan=True).encode()
-    write_atomic(out / "grid.json", lambda fh: fh.write(text))
+    text = _Text(title, description, figures, _labels(inputs, outputs, p_label))
+    write_folder_atomic(out, lambda folder: _fill_select(sel, folder, text), REPORT_ENTRIES)
+    return out / "select.md"
+
+
+def _fill_select(sel: SelectResult, out: Path, text: _Text) -> None:
+    """Write the files of :func:`write_select_report` into the (new) folder ``out``."""
+    chosen = f"{text.title}: the chosen model ({sel.row.label})"
+    _fill_report(sel.best, out, replace(text, title=chosen), None)
+    title, description, figures = text.title, text.description, text.figures
+    grid = json.dumps(select_numbers(sel), indent=1, allow_nan=True).encode()
+    write_atomic(out / "grid.json", lambda fh: fh.write(grid))
     figure = []
     if figures:
         try:
@@ -353,4 +407,4 @@ def write_select_report(
         "",
     ]
     md = "\n".join(lines)
-    return write_atomic(out / "select.md", lambda fh: fh.write(md.encode()))
+    write_atomic(out / "select.md", lambda fh: fh.write(md.encode()))

@@ -31,6 +31,7 @@ from lpvid.errors import logger
 from lpvid.identified import IdentifyResult
 from lpvid.initial.orders import order_hints
 from lpvid.layout import fixed_mask
+from lpvid.memory import pipeline_memory, runs_at_once
 from lpvid.pipeline import check_gammas, check_validation, identify
 from lpvid.selected import GridRow, SelectResult, basis_label, choose_pair, free_in_use
 
@@ -327,6 +328,17 @@ def select(
     (``row.warnings``); those of the chosen pair's run on all the data are
     raised again, prefixed with the pair.
 
+    Memory: each identify run needs what :func:`lpvid.identify` says
+    (about ``8 P^2`` bytes for ``J^T J`` of its ``P = (Nb + 1)(n + l)(n + r)``
+    parameters, twice that during a step, ``144 K^2`` for the cone programs,
+    ``K = Nb P / (Nb + 1)``, ``64 P^2`` for the covariance, then half as
+    much again and 64 MB: :func:`lpvid.memory.pipeline_memory`), and with
+    the default threads the runs that go on
+    at once add up: fewer threads run at once when the largest runs would
+    not fit together in what the process may allocate
+    (:func:`lpvid.available_memory`), and a pair that does not fit alone is
+    recorded in the grid with its ``MemoryError`` before any work.
+
     Parameters
     ----------
     data : FrfData
@@ -369,6 +381,9 @@ def select(
     ValueError, TypeError
         On bad arguments (naming the argument), and when no pair of the grid
         could be identified (the message lists why).
+    MemoryError
+        Before any work, with the default threads, when not one pair of the
+        grid fits in what the process may allocate.
     KeyboardInterrupt
         When Ctrl-C stops the run before any pair is done.
 
@@ -418,7 +433,9 @@ def select(
     _say(progress, f"{len(pairs)} pairs, {len(tasks)} identify runs; the pairs judged by {rule}")
     own = None
     if executor is None:
-        own = ThreadPoolExecutor(max_workers=min(len(tasks), os.cpu_count() or 1))
+        needs = [pipeline_memory(data, n, b)[0] for n, b in pairs]
+        at_once = runs_at_once(needs, min(len(tasks), os.cpu_count() or 1), "select")
+        own = ThreadPoolExecutor(max_workers=at_once)
     try:
         outcomes, interrupted = _gather(executor or own, tasks, rows, progress)  # type: ignore[arg-type]
     finally:

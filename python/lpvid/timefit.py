@@ -14,6 +14,7 @@ from lpvid import _core
 from lpvid._checks import positive_float
 from lpvid.fit import Callback, _l21_result, _monitor, lm_settings, warn_if_unconverged
 from lpvid.layout import free_mask
+from lpvid.memory import check_fit
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result
 from lpvid.settings import L21Settings
@@ -110,6 +111,21 @@ def fit_time(
     ValueError, TypeError
         On bad arguments (named), records that do not fit the model, or a
         starting model that diverges along a record.
+    MemoryError
+        Before any work, when the fit needs more memory than the process may
+        allocate (:func:`lpvid.available_memory`). With ``S`` the free
+        parameters of A and B plus ``n`` (the initial states, when
+        estimated), ``P = (Nb + 1)(n + l)(n + r)`` free parameters in all and
+        ``t`` threads, it needs about ``8 (S^2 (t + 1) + 2 P^2)`` bytes (each
+        thread's Gram sums, one record's Gram matrix, ``J^T J`` of the
+        current point and of the trial point), ``16 * 2048 S`` for a block of
+        Jacobian rows and, for a continuous-time model, ``8 (2048 / l) n^2
+        (n + r)`` for the hold's derivatives of a block; with ``gamma > 0``
+        the cone programs as in :func:`lpvid.fit_l21`; the simulated
+        trajectory of the longest record (``T`` samples) ``8 T (n + 3 l)``;
+        then half as much again and 64 MB (:func:`lpvid.memory.resident`).
+        The records themselves hold ``8 T (r + Nb + 2 l)`` bytes each.
+        :func:`lpvid.fit_memory` gives the figure.
 
     Warns
     -----
@@ -146,6 +162,7 @@ def fit_time(
     g = positive_float(gamma, "gamma", allow_zero=True)
     problem = build_time_problem(model, cost)
     free = free_mask(model, fixed)
+    check_fit("fit_time", model, None, free, "lm" if g == 0.0 else "l21", cost)
     if g == 0.0:
         if settings is not None:
             raise ValueError("settings: the l2,1 settings apply with gamma > 0 only")

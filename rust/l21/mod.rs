@@ -11,7 +11,9 @@ use crate::fit::{
     check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
 };
 use crate::layout::{FreeSet, Shape};
-use crate::lm::{levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings};
+use crate::lm::{
+    levenberg_marquardt, marquardt_diagonal, predicted_decrease, trial_point, LmSettings,
+};
 use crate::objective::Objective;
 use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned};
 use std::time::Instant;
@@ -243,7 +245,7 @@ pub fn fit_l21(
             let mut rejected = damping;
             rejected.update(-1.0);
             let next_mu = (doubtful && !rejected.exhausted()).then_some(rejected.mu);
-            let solved = solver.solve(&cone, damping.mu, next_mu);
+            let solved = solver.solve(&cone, damping.mu, next_mu)?;
             let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
             let mut new_theta = None;
             let mut new_objective = objective;
@@ -255,7 +257,7 @@ pub fn fit_l21(
                     - cone.penalty(Some(d));
                 // Most steps are taken: evaluate the Gauss-Newton pieces at the
                 // trial point at once (as Levenberg-Marquardt does).
-                if let Ok(cand) = problem.gauss_newton(&trial, free) {
+                if let Some(cand) = trial_point(problem.gauss_newton(&trial, free))? {
                     let f_trial = cand.vnls / m_res + cone.penalty(Some(d));
                     rho = (objective - f_trial) / predicted;
                     if f_trial.is_finite() && f_trial < objective && predicted > 0.0 {
@@ -366,7 +368,7 @@ pub fn single_cone_step(
         n_residuals: m_res,
         pinned: None,
     };
-    let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol));
+    let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol))?;
     // g^T d + d^T (J^T J + mu D) d = -predicted decrease + mu d^T D d.
     let objective = solved.step.as_ref().map_or(f64::NAN, |d| {
         let damping: f64 = diag.iter().zip(d).map(|(w, x)| mu * w * x * x).sum();

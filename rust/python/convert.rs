@@ -1,9 +1,11 @@
 //! Array conversions and the one place where core errors become Python
 //! exceptions.
 
-use crate::error::Error;
+use crate::error::{catch_panic, Error};
 use numpy::{Complex64, PyArray1, PyReadonlyArray1};
-use pyo3::exceptions::{PyArithmeticError, PyKeyboardInterrupt, PyValueError};
+use pyo3::exceptions::{
+    PyArithmeticError, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyValueError,
+};
 use pyo3::prelude::*;
 
 impl From<Error> for PyErr {
@@ -17,8 +19,27 @@ impl From<Error> for PyErr {
             }
             Error::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
             Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
+            Error::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
+            Error::Internal(_) => PyRuntimeError::new_err(e.to_string()),
         }
     }
+}
+
+/// Run core work with the GIL released. A panic inside becomes a Python
+/// exception (MemoryError for a failed allocation, RuntimeError for a
+/// bug), never a `PanicException`: every call into the core from Python
+/// goes through here or [`guarded`].
+pub fn detached<T: Send>(
+    py: Python<'_>,
+    work: impl FnOnce() -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    Ok(py.detach(|| catch_panic(work))?)
+}
+
+/// Run core work that keeps the GIL (constructors), with panics caught
+/// as in [`detached`].
+pub fn guarded<T>(work: impl FnOnce() -> crate::Result<T>) -> PyResult<T> {
+    Ok(catch_panic(work)?)
 }
 
 /// Copy a 1-D float64 array (any strides).

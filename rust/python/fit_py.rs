@@ -3,7 +3,7 @@
 //! back once per iteration to call the progress callback and to notice
 //! Ctrl-C.
 
-use super::convert::{bool_vec, real_vec, to_py};
+use super::convert::{bool_vec, detached, real_vec, to_py};
 use super::time_py::target;
 use super::trust_py::PyFrozenRange;
 use crate::fit::{Fit, Iteration, Monitor, StepKind, Stop};
@@ -77,7 +77,7 @@ fn with_monitor<T: Send>(
         error: None,
         signalled: false,
     };
-    let out = py.detach(|| run(&mut monitor))?;
+    let out = detached(py, || run(&mut monitor))?;
     match monitor.error {
         Some(e) => Err(e),
         None => Ok((out, monitor.signalled)),
@@ -440,7 +440,9 @@ fn cone_step_py<'py>(
     let problem = target.objective();
     let free = free_set(problem.shape(), free)?;
     let settings = l21_settings(settings)?;
-    let report = py.detach(|| single_cone_step(problem, &theta, &free, &sup, &settings, mu))?;
+    let report = detached(py, || {
+        single_cone_step(problem, &theta, &free, &sup, &settings, mu)
+    })?;
     let groups = &report.groups;
     let d = PyDict::new(py);
     d.set_item("step", report.step.map(|s| to_py(py, s)))?;

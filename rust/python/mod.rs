@@ -3,6 +3,7 @@
 
 mod convert;
 mod fit_py;
+mod memory_py;
 mod problem_py;
 mod simulate_py;
 mod time_py;
@@ -37,6 +38,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     problem_py::register(m)?;
     fit_py::register(m)?;
+    memory_py::register(m)?;
     simulate_py::register(m)?;
     time_py::register(m)?;
     trust_py::register(m)?;

@@ -1,6 +1,6 @@
 //! `Problem` and `frequency_response` for Python.
 
-use super::convert::{bool_vec, complex_vec, real_vec, to_py};
+use super::convert::{bool_vec, complex_vec, detached, guarded, real_vec, to_py};
 use crate::data::FrfData;
 use crate::layout::{FreeSet, Shape};
 use crate::problem::Problem;
@@ -26,7 +26,9 @@ fn frequency_response_py<'py>(
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
     let shape = Shape::new(n, r, l, nb)?;
     let (theta, basis, z) = (real_vec(&theta), real_vec(&basis), complex_vec(&z));
-    let out = py.detach(|| frequency_response(&shape, &theta, &basis, n_points, &z))?;
+    let out = detached(py, || {
+        frequency_response(&shape, &theta, &basis, n_points, &z)
+    })?;
     Ok(to_py(py, out))
 }
 
@@ -53,18 +55,18 @@ impl PyProblem {
         sigma: PyReadonlyArray1<'_, f64>,
         basis: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<Self> {
-        let shape = Shape::new(n, r, l, nb)?;
-        let data = FrfData::new(
-            n_points,
-            l,
-            r,
+        let (z, g, sigma, basis) = (
             complex_vec(&z),
             complex_vec(&g),
-            &real_vec(&sigma),
-        )?;
-        Ok(PyProblem {
-            inner: Problem::new(shape, data, &real_vec(&basis))?,
-        })
+            real_vec(&sigma),
+            real_vec(&basis),
+        );
+        let inner = guarded(|| {
+            let shape = Shape::new(n, r, l, nb)?;
+            let data = FrfData::new(n_points, l, r, z, g, &sigma)?;
+            Problem::new(shape, data, &basis)
+        })?;
+        Ok(PyProblem { inner })
     }
 
     /// Number of complex residuals `N F l r`.
@@ -80,14 +82,14 @@ impl PyProblem {
         theta: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
         let theta = real_vec(&theta);
-        let out = py.detach(|| self.inner.residual(&theta))?;
+        let out = detached(py, || self.inner.residual(&theta))?;
         Ok(to_py(py, out))
     }
 
     /// `V_NLS(theta)`.
     fn vnls(&self, py: Python<'_>, theta: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
         let theta = real_vec(&theta);
-        Ok(py.detach(|| self.inner.cost(&theta))?)
+        detached(py, || self.inner.cost(&theta))
     }
 
     /// `(V_NLS, gradient, J^T J)` over the free parameters (all when `free`
@@ -103,7 +105,7 @@ impl PyProblem {
         let theta = real_vec(&theta);
         let mask = free.as_ref().map(bool_vec);
         let free = FreeSet::for_shape(self.inner.shape(), mask.as_deref())?;
-        let gn = py.detach(|| self.inner.gauss_newton(&theta, &free))?;
+        let gn = detached(py, || self.inner.gauss_newton(&theta, &free))?;
         Ok((gn.vnls, to_py(py, gn.gradient), to_py(py, gn.gram)))
     }
 }

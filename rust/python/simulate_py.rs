@@ -1,6 +1,6 @@
 //! `simulate` for Python.
 
-use super::convert::{real_vec, to_py};
+use super::convert::{detached, real_vec, to_py};
 use crate::layout::Shape;
 use crate::simulate::{simulate, simulate_zoh};
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -50,7 +50,7 @@ fn simulate_py<'py>(
 )> {
     let shape = Shape::new(n, r, l, nb)?;
     let (theta, basis, u, x0) = (data(&theta), data(&basis), data(&u), data(&x0));
-    let traj = py.detach(|| match dt {
+    let traj = detached(py, || match dt {
         None => simulate(&shape, &theta, &basis, &u, &x0, states),
         Some(dt) => simulate_zoh(&shape, &theta, &basis, &u, &x0, dt, states),
     })?;

@@ -2,7 +2,7 @@
 //! time problem (`SumProblem`), and the one place where the fitting
 //! functions find the cost they minimise.
 
-use super::convert::{bool_vec, real_vec, to_py};
+use super::convert::{bool_vec, detached, guarded, real_vec, to_py};
 use super::problem_py::PyProblem;
 use crate::layout::{FreeSet, Shape};
 use crate::objective::Objective;
@@ -74,21 +74,25 @@ impl PyTimeProblem {
                 sigma.len()
             )));
         }
-        let records = (0..k)
+        let arrays: Vec<_> = (0..k)
             .map(|i| {
-                Record::new(
-                    &shape,
+                (
                     real_vec(&u[i]),
                     real_vec(&psi[i]),
                     real_vec(&y[i]),
-                    &real_vec(&sigma[i]),
+                    real_vec(&sigma[i]),
                 )
             })
-            .collect::<crate::Result<Vec<_>>>()?;
+            .collect();
         let initial = initial_state(x0, x0_values)?;
-        Ok(PyTimeProblem {
-            inner: TimeProblem::new(shape, records, initial, dt, skip)?,
-        })
+        let inner = guarded(|| {
+            let records = arrays
+                .into_iter()
+                .map(|(u, psi, y, sigma)| Record::new(&shape, u, psi, y, &sigma))
+                .collect::<crate::Result<Vec<_>>>()?;
+            TimeProblem::new(shape, records, initial, dt, skip)
+        })?;
+        Ok(PyTimeProblem { inner })
     }
 
     /// Number of real residuals in the cost: the noise floor.
@@ -100,7 +104,7 @@ impl PyTimeProblem {
     /// The cost at `theta`.
     fn vnls(&self, py: Python<'_>, theta: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
         let theta = real_vec(&theta);
-        Ok(py.detach(|| self.inner.cost(&theta))?)
+        detached(py, || self.inner.cost(&theta))
     }
 
     /// Weighted residual of the samples in the cost, record after record.
@@ -110,7 +114,7 @@ impl PyTimeProblem {
         theta: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let theta = real_vec(&theta);
-        Ok(to_py(py, py.detach(|| self.inner.residual(&theta))?))
+        Ok(to_py(py, detached(py, || self.inner.residual(&theta))?))
     }
 
     /// Initial state of every record, flat `records x n`.
@@ -120,7 +124,10 @@ impl PyTimeProblem {
         theta: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let theta = real_vec(&theta);
-        Ok(to_py(py, py.detach(|| self.inner.initial_states(&theta))?))
+        Ok(to_py(
+            py,
+            detached(py, || self.inner.initial_states(&theta))?,
+        ))
     }
 
     /// `(V, gradient, J^T J, stage seconds)` over the free parameters.
@@ -140,7 +147,7 @@ impl PyTimeProblem {
         let theta = real_vec(&theta);
         let mask = free.as_ref().map(bool_vec);
         let free = FreeSet::for_shape(self.inner.shape(), mask.as_deref())?;
-        let (gn, times) = py.detach(|| self.inner.gauss_newton_timed(&theta, &free))?;
+        let (gn, times) = detached(py, || self.inner.gauss_newton_timed(&theta, &free))?;
         Ok((
             gn.vnls,
             to_py(py, gn.gradient),
@@ -182,7 +189,7 @@ impl PySumProblem {
     fn vnls(&self, py: Python<'_>, theta: PyReadonlyArray1<'_, f64>) -> PyResult<f64> {
         let theta = real_vec(&theta);
         let sum = self.sum();
-        Ok(py.detach(|| sum.cost(&theta))?)
+        detached(py, || sum.cost(&theta))
     }
 
     /// `(V, gradient, J^T J)` of the sum over the free parameters.
@@ -198,7 +205,7 @@ impl PySumProblem {
         let sum = self.sum();
         let mask = free.as_ref().map(bool_vec);
         let free = FreeSet::for_shape(sum.shape(), mask.as_deref())?;
-        let gn = py.detach(|| sum.gauss_newton(&theta, &free))?;
+        let gn = detached(py, || sum.gauss_newton(&theta, &free))?;
         Ok((gn.vnls, to_py(py, gn.gradient), to_py(py, gn.gram)))
     }
 }

@@ -1,7 +1,7 @@
 //! Uncertainty and stability pieces for Python: the LTI Jacobian of the
 //! frozen response and the check points of a scheduling range.
 
-use super::convert::{complex_vec, real_vec, to_py};
+use super::convert::{complex_vec, detached, guarded, real_vec, to_py};
 use crate::error::invalid;
 use crate::layout::Shape;
 use crate::sensitivity::lti_jacobian;
@@ -27,7 +27,7 @@ fn lti_jacobian_py<'py>(
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
     let shape = Shape::new(n, r, l, nb)?;
     let (theta, basis, z) = (real_vec(&theta), real_vec(&basis), complex_vec(&z));
-    let out = py.detach(|| lti_jacobian(&shape, &theta, &basis, n_points, &z))?;
+    let out = detached(py, || lti_jacobian(&shape, &theta, &basis, n_points, &z))?;
     Ok(to_py(py, out))
 }
 
@@ -62,7 +62,8 @@ impl PyFrozenRange {
         if !(tol.is_finite() && tol >= 0.0) {
             return Err(invalid("tol", format!("expected a finite number >= 0, got {tol}")).into());
         }
-        let inner = FrozenRange::new(nb, &real_vec(&basis), n_points, stride, discrete)?;
+        let basis = real_vec(&basis);
+        let inner = guarded(|| FrozenRange::new(nb, &basis, n_points, stride, discrete))?;
         Ok(PyFrozenRange { inner, tol })
     }
 
@@ -82,7 +83,7 @@ impl PyFrozenRange {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let theta = real_vec(&theta);
         let shape = Shape::new(n, r, l, self.nb())?;
-        let out = py.detach(|| self.inner.margins(&shape, &theta))?;
+        let out = detached(py, || self.inner.margins(&shape, &theta))?;
         Ok(to_py(py, out))
     }
 
@@ -97,7 +98,7 @@ impl PyFrozenRange {
     ) -> PyResult<(usize, f64)> {
         let theta = real_vec(&theta);
         let shape = Shape::new(n, r, l, self.nb())?;
-        Ok(py.detach(|| self.inner.worst(&shape, &theta, self.tol))?)
+        detached(py, || self.inner.worst(&shape, &theta, self.tol))
     }
 }
 

@@ -151,6 +151,20 @@ fn check_values(basis: &[f64], u: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// Check that the simulated trajectory (outputs, and the states with
+/// `states` or on the wide path) can be had: [`crate::Error::OutOfMemory`]
+/// before any work rather than an abort while the kernels allocate.
+fn trajectory_fits(shape: &Shape, t_len: usize, states: bool) -> Result<()> {
+    let wide = (shape.n + shape.l).div_ceil(4) > 8;
+    let x = if states || wide {
+        (t_len + 1) * shape.n
+    } else {
+        0
+    };
+    let bytes = (t_len * shape.l + x).saturating_mul(8);
+    crate::memory::probe(bytes, "the simulated trajectory")
+}
+
 /// Simulate a discrete-time LPV model.
 ///
 /// `basis` holds the `T x Nb` values `psi_1..psi_Nb` at `p(0..T)`
@@ -166,7 +180,8 @@ pub fn simulate(
     x0: &[f64],
     states: bool,
 ) -> Result<Trajectory> {
-    check_sizes(shape, theta, basis, u, x0)?;
+    let t_len = check_sizes(shape, theta, basis, u, x0)?;
+    trajectory_fits(shape, t_len, states)?;
     // Monomorphised kernels: K = ceil((n + l) / 4) register blocks and,
     // for K <= 4, the number of basis functions (small models are the
     // common case; the rest runs with Nb known at run time).

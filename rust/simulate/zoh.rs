@@ -27,6 +27,8 @@ pub fn simulate_zoh(
 ) -> Result<Trajectory> {
     let t_len = check_sizes(shape, theta, basis, u, x0)?;
     check_values(basis, u)?;
+    // The states are always kept here.
+    super::trajectory_fits(shape, t_len, true)?;
     if !(dt.is_finite() && dt > 0.0) {
         return Err(invalid(
             "dt",

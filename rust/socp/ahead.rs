@@ -21,6 +21,7 @@
 //! at n = 24 3x3 peaked at 1.38 GB against 1.18 GB on one thread).
 
 use super::{ConeProblem, ConeSolver, ConeStep};
+use crate::error::Result;
 
 /// Two Clarabel solvers kept between the steps of one fit, and the spare
 /// step solved ahead.
@@ -48,10 +49,15 @@ impl Lookahead {
     ///
     /// The step solved ahead belongs to this point and these weights: call
     /// [`Lookahead::forget`] whenever either changes.
-    pub fn solve(&mut self, cone: &ConeProblem<'_>, mu: f64, next_mu: Option<f64>) -> ConeStep {
+    pub fn solve(
+        &mut self,
+        cone: &ConeProblem<'_>,
+        mu: f64,
+        next_mu: Option<f64>,
+    ) -> Result<ConeStep> {
         if let Some((ahead_mu, step)) = self.ahead.take() {
             if ahead_mu == mu {
-                return step;
+                return Ok(step);
             }
         }
         match next_mu {
@@ -59,7 +65,7 @@ impl Lookahead {
                 let (main, spare) = (&mut self.main, &mut self.spare);
                 let (step, ahead) =
                     rayon::join(|| cone.solve(mu, main), || cone.solve(next, spare));
-                self.ahead = Some((next, ahead));
+                self.ahead = Some((next, ahead?));
                 step
             }
             _ => cone.solve(mu, &mut self.main),

@@ -42,6 +42,8 @@ pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
 
 use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for};
+use crate::error::Result;
+use crate::memory::try_mat;
 use crate::objective::GaussNewton;
 use clarabel::solver::SolverStatus;
 use faer::linalg::matmul::matmul;
@@ -141,8 +143,9 @@ impl ConeProblem<'_> {
     }
 
     /// Solve the cone program (27) with damping `mu` (see the module notes
-    /// on the active set).
-    pub fn solve(&self, mu: f64, cache: &mut ConeSolver) -> ConeStep {
+    /// on the active set). A failed solve is a step without a solution;
+    /// the error is [`crate::Error::OutOfMemory`] only.
+    pub fn solve(&self, mu: f64, cache: &mut ConeSolver) -> Result<ConeStep> {
         let nf = self.gn.dim();
         let active: Vec<usize> = (0..self.groups.len())
             .filter(|&k| self.groups[k].is_active())
@@ -155,9 +158,14 @@ impl ConeProblem<'_> {
         // solution needs it.
         let scale = self.jacobi_scale(mu);
         if scale.iter().any(|s| !s.is_finite()) {
-            return ConeStep::failed("the quadratic has a zero or non-finite diagonal");
+            return Ok(ConeStep::failed(
+                "the quadratic has a zero or non-finite diagonal",
+            ));
         }
-        let curvature = self.pinned.map(|p| p.scaled_curvature(&scale));
+        let curvature = self
+            .pinned
+            .map(|p| p.scaled_curvature(&scale))
+            .transpose()?;
         let grad0 = self.model_gradient(mu, &vec![0.0; nf]);
         let resting: Vec<bool> = self
             .groups
@@ -179,17 +187,17 @@ impl ConeProblem<'_> {
         let mut iterations = 0;
         let mut solves = 0;
         for _ in 0..MAX_ROUNDS {
-            let round = self.solve_with(mu, &zero, &scale, curvature.as_ref(), cache);
+            let round = self.solve_with(mu, &zero, &scale, curvature.as_ref(), cache)?;
             iterations += round.iterations;
             solves += usize::from(round.solved);
             let Some(mut d) = round.step else {
-                return ConeStep {
+                return Ok(ConeStep {
                     step: None,
                     status: round.status,
                     iterations,
                     zeroed: 0,
                     solves,
-                };
+                });
             };
             let grad = self.model_gradient(mu, &d);
             let mut violated = false;
@@ -216,15 +224,15 @@ impl ConeProblem<'_> {
                     }
                 }
             }
-            return ConeStep {
+            return Ok(ConeStep {
                 step: Some(d),
                 status: round.status,
                 iterations,
                 zeroed: zero.iter().filter(|&&z| z).count(),
                 solves,
-            };
+            });
         }
-        ConeStep::failed("the active set did not settle")
+        Ok(ConeStep::failed("the active set did not settle"))
     }
 
     /// The step that brings the groups marked in `zero` to zero and leaves
@@ -255,7 +263,7 @@ impl ConeProblem<'_> {
         scale: &[f64],
         extra: Option<&Mat<f64>>,
         cache: &mut ConeSolver,
-    ) -> Round {
+    ) -> Result<Round> {
         let nf = self.gn.dim();
         let m_res = self.n_residuals;
         let p_full = |i: usize, j: usize| {
@@ -294,17 +302,18 @@ impl ConeProblem<'_> {
         grouped.iter().for_each(|&p| is_grouped[p] = true);
         let others: Vec<usize> = (0..nf).filter(|&p| !is_grouped[p]).collect();
         let nk = grouped.len();
-        let mut p_red = Mat::from_fn(nk, nk, |a, b| p_full(grouped[a], grouped[b]));
+        let dense = "the dense block of the cone step";
+        let mut p_red = try_mat(nk, nk, |a, b| p_full(grouped[a], grouped[b]), dense)?;
         let mut q_red: Vec<f64> = grouped.iter().map(|&p| q_full(p)).collect();
         // Elimination: e_U = -L^-T (v + W e_G) with P_UU = L L^T, W = L^-1 P_UG, v = L^-1 q_U.
         let mut elimination = None;
         if !others.is_empty() {
             let nu = others.len();
-            let p_uu = Mat::from_fn(nu, nu, |a, b| p_full(others[a], others[b]));
-            let Some(l) = cholesky(p_uu) else {
-                return Round::failed("the quadratic is not positive definite");
+            let p_uu = try_mat(nu, nu, |a, b| p_full(others[a], others[b]), dense)?;
+            let Some(l) = cholesky(p_uu)? else {
+                return Ok(Round::failed("the quadratic is not positive definite"));
             };
-            let mut w = Mat::from_fn(nu, nk, |a, b| p_full(others[a], grouped[b]));
+            let mut w = try_mat(nu, nk, |a, b| p_full(others[a], grouped[b]), dense)?;
             let mut v = Mat::from_fn(nu, 1, |a, _| q_full(others[a]));
             lower_solve(&l, w.as_mut());
             lower_solve(&l, v.as_mut());
@@ -333,22 +342,23 @@ impl ConeProblem<'_> {
                 false,
             )
         } else {
-            let program = self.program(&open, scale, &p_red, q_red);
-            let sol = match cache.run(&program) {
+            let program = self.program(&open, scale, &p_red, q_red)?;
+            drop(p_red);
+            let sol = match cache.run(&program)? {
                 Ok(sol) => sol,
-                Err(why) => return Round::failed(&why),
+                Err(why) => return Ok(Round::failed(&why)),
             };
             let good = matches!(
                 sol.status,
                 SolverStatus::Solved | SolverStatus::AlmostSolved
             );
             if !good {
-                return Round {
+                return Ok(Round {
                     step: None,
                     status: format!("{:?}", sol.status),
                     iterations: sol.iterations,
                     solved: true,
-                };
+                });
             }
             (
                 sol.x[..nk].to_vec(),
@@ -374,7 +384,7 @@ impl ConeProblem<'_> {
         }
         let step: Vec<f64> = e.iter().zip(scale).map(|(x, s)| x * s).collect();
         let finite = step.iter().all(|v| v.is_finite());
-        Round {
+        Ok(Round {
             step: finite.then_some(step),
             status: if finite {
                 status
@@ -383,7 +393,7 @@ impl ConeProblem<'_> {
             },
             iterations,
             solved,
-        }
+        })
     }
 
     /// The cone program over `x = [e_G; t]`: `P = P_red` (its dense upper
@@ -401,7 +411,7 @@ impl ConeProblem<'_> {
         scale: &[f64],
         p_red: &Mat<f64>,
         q_red: Vec<f64>,
-    ) -> Program {
+    ) -> Result<Program> {
         let nk = p_red.nrows();
         let ng = open.len();
         let mut b = Vec::new();
@@ -423,7 +433,7 @@ impl ConeProblem<'_> {
         for &row in &t_rows {
             a.push([(row, -1.0)]);
         }
-        let mut p = Csc::new();
+        let mut p = Csc::with_capacity(nk * (nk + 1) / 2, "the cone program's quadratic")?;
         for c in 0..nk {
             p.push((0..=c).map(|i| (i, p_red[(i, c)])));
         }
@@ -432,7 +442,7 @@ impl ConeProblem<'_> {
         }
         let mut q = q_red;
         q.extend(open.iter().map(|g| self.gamma * g.phi));
-        Program { p, q, a, b, cones }
+        Ok(Program { p, q, a, b, cones })
     }
 }
 

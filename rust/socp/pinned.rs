@@ -11,7 +11,10 @@
 //! exempt directions) change nothing anywhere, so the steps stay free along
 //! them.
 
-use faer::{Mat, MatRef};
+use crate::error::Result;
+use crate::memory::try_zeros;
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatRef};
 
 /// Singular values below this fraction of the largest are dropped when the
 /// directions are made orthonormal.
@@ -94,12 +97,17 @@ impl PinnedBasis {
     /// The added curvature in the scaled variables `e = d / scale` of a
     /// step: `weight (S U)(S U)^T`, the same quadratic in the unscaled step
     /// at every scale.
-    pub fn scaled_curvature(&self, scale: &[f64]) -> Mat<f64> {
+    pub fn scaled_curvature(&self, scale: &[f64]) -> Result<Mat<f64>> {
         let root = self.weight.sqrt();
         let su = Mat::from_fn(self.u.nrows(), self.u.ncols(), |i, c| {
             self.u[(i, c)] * scale[i] * root
         });
-        &su * su.transpose()
+        let nf = su.nrows();
+        let mut out = try_zeros(nf, nf, "the curvature along the pinned directions")?;
+        // As `&su * su.transpose()` computes it.
+        let par = faer::get_global_parallelism();
+        matmul(out.as_mut(), Accum::Replace, &su, su.transpose(), 1.0, par);
+        Ok(out)
     }
 
     /// Adds the curvature's gradient at the unscaled step `d`,
@@ -173,7 +181,7 @@ mod tests {
         let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + 0.1 * i as f64).collect();
         let basis = pinned.basis(&scale0).expect("directions are left");
         let scale: Vec<f64> = (0..nf).map(|i| 0.3 + 0.2 * i as f64).collect();
-        let curvature = basis.scaled_curvature(&scale);
+        let curvature = basis.scaled_curvature(&scale).unwrap();
         let d: Vec<f64> = (0..nf).map(|i| (i as f64 * 1.7).cos()).collect();
         // Unscaled curvature S^-1 C S^-1 times d, against add_gradient.
         let mut grad = vec![0.0; nf];

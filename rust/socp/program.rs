@@ -1,6 +1,8 @@
 //! The cone program of one step in Clarabel's standard form, and the
 //! Clarabel solver kept between the steps of a fit.
 
+use crate::error::Result as CoreResult;
+use crate::memory::{estimate, guarded, probe, try_grow};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
@@ -22,6 +24,15 @@ impl Csc {
             colptr: vec![0],
             ..Csc::default()
         }
+    }
+
+    /// Start a matrix with room for `nnz` entries, or
+    /// [`crate::Error::OutOfMemory`] naming `what`.
+    pub(super) fn with_capacity(nnz: usize, what: &'static str) -> CoreResult<Self> {
+        let mut m = Csc::new();
+        try_grow(&mut m.rowval, nnz, what)?;
+        try_grow(&mut m.values, nnz, what)?;
+        Ok(m)
     }
 
     /// Append one column from `(row, value)` pairs (rows ascending).
@@ -73,6 +84,16 @@ type Key = (
 );
 
 impl Program {
+    /// Whether `key` is this program's (compared in place: no copy).
+    fn has_key(&self, key: &Key) -> bool {
+        self.p.colptr == key.0
+            && self.p.rowval == key.1
+            && self.a.colptr == key.2
+            && self.a.rowval == key.3
+            && self.cones == key.4
+            && self.b.len() == key.5
+    }
+
     /// What fixes the sparsity pattern: a solver built for one program can
     /// take the numbers of another with the same key.
     fn key(&self) -> Key {
@@ -139,9 +160,21 @@ impl ConeSolver {
         ConeSolver { tol, cached: None }
     }
 
-    pub(super) fn run(&mut self, prog: &Program) -> Result<Solved, String> {
-        let key = prog.key();
-        let reuse = matches!(&self.cached, Some((k, _)) if *k == key);
+    /// Solve `prog`: Clarabel's solution, or why it failed. The error is
+    /// [`crate::Error::OutOfMemory`] when a new solver would not fit in the
+    /// memory left (checked before Clarabel, which cannot fail gracefully,
+    /// allocates).
+    pub(super) fn run(&mut self, prog: &Program) -> CoreResult<Result<Solved, String>> {
+        let reuse = matches!(&self.cached, Some((k, _)) if prog.has_key(k));
+        if !reuse {
+            // The old solver goes before the new one is built.
+            self.cached = None;
+            let (n, m) = (prog.q.len(), prog.b.len());
+            let bytes = estimate::clarabel(n, m, prog.p.values.len() + prog.a.values.len());
+            probe(bytes, "the cone solver (Clarabel)")?;
+        }
+        // A new solver's allocations were probed: marked as guarded (see
+        // `memory::guarded_allocation`).
         let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<_, String> {
             if reuse {
                 if let Some((_, solver)) = self.cached.as_mut() {
@@ -152,46 +185,51 @@ impl ConeSolver {
                     return Ok(Solved::from(&solver.solution));
                 }
             }
-            let n = prog.q.len();
-            let p = prog.p.to_clarabel(n);
-            let a = prog.a.to_clarabel(prog.b.len());
-            let cones: Vec<SupportedConeT<f64>> = prog
-                .cones
-                .iter()
-                .map(|&c| match c {
-                    Cone::Soc(d) => SupportedConeT::SecondOrderConeT(d),
-                })
-                .collect();
-            let settings = DefaultSettingsBuilder::default()
-                .verbose(false)
-                .max_iter(200)
-                .max_threads(1)
-                .tol_gap_abs(self.tol)
-                .tol_gap_rel(self.tol)
-                .tol_feas(self.tol)
-                .iterative_refinement_enable(self.tol < DEFAULT_CONE_TOL)
-                .presolve_enable(false)
-                // The step is Jacobi-scaled already (P has a unit
-                // diagonal); Clarabel's own equilibration on top of it
-                // costs interior-point iterations: measured 13.5 -> 11.2 per
-                // step on the gantry, 17.0 -> 11.7 on points25, 12.6 -> 8.4
-                // on n10 (benches/bench_scale.py), same models.
-                .equilibrate_enable(false)
-                .build()
-                .map_err(|e| format!("settings: {e}"))?;
-            let mut solver = DefaultSolver::new(&p, &prog.q, &a, &prog.b, &cones, settings)
-                .map_err(|e| format!("setup failed: {e}"))?;
-            solver.solve();
-            let sol = Solved::from(&solver.solution);
-            self.cached = Some((key, solver));
-            Ok(sol)
+            guarded(|| self.build(prog))
         }));
-        match outcome {
+        Ok(match outcome {
             Ok(r) => r,
             Err(_) => {
                 self.cached = None;
                 Err("the cone solver panicked".to_string())
             }
-        }
+        })
+    }
+
+    /// Build a solver for `prog`, solve, and keep the solver.
+    fn build(&mut self, prog: &Program) -> Result<Solved, String> {
+        let n = prog.q.len();
+        let p = prog.p.to_clarabel(n);
+        let a = prog.a.to_clarabel(prog.b.len());
+        let cones: Vec<SupportedConeT<f64>> = prog
+            .cones
+            .iter()
+            .map(|&c| match c {
+                Cone::Soc(d) => SupportedConeT::SecondOrderConeT(d),
+            })
+            .collect();
+        let settings = DefaultSettingsBuilder::default()
+            .verbose(false)
+            .max_iter(200)
+            .max_threads(1)
+            .tol_gap_abs(self.tol)
+            .tol_gap_rel(self.tol)
+            .tol_feas(self.tol)
+            .iterative_refinement_enable(self.tol < DEFAULT_CONE_TOL)
+            .presolve_enable(false)
+            // The step is Jacobi-scaled already (P has a unit
+            // diagonal); Clarabel's own equilibration on top of it
+            // costs interior-point iterations: measured 13.5 -> 11.2 per
+            // step on the gantry, 17.0 -> 11.7 on points25, 12.6 -> 8.4
+            // on n10 (benches/bench_scale.py), same models.
+            .equilibrate_enable(false)
+            .build()
+            .map_err(|e| format!("settings: {e}"))?;
+        let mut solver = DefaultSolver::new(&p, &prog.q, &a, &prog.b, &cones, settings)
+            .map_err(|e| format!("setup failed: {e}"))?;
+        solver.solve();
+        let sol = Solved::from(&solver.solution);
+        self.cached = Some((prog.key(), solver));
+        Ok(sol)
     }
 }

@@ -7,6 +7,7 @@ use super::hold::Hold;
 use super::record::Record;
 use crate::error::{Error, Result};
 use crate::layout::{Matrix, Shape};
+use crate::memory::try_vec;
 use rayon::prelude::*;
 
 /// Samples per parallel task when the frames are filled (the hold of a
@@ -85,24 +86,30 @@ pub(crate) struct Frames {
 }
 
 impl Frames {
-    /// Room for `capacity` samples; `forcing` when the hold's derivative is needed.
-    pub fn new(coef: &Coefficients, capacity: usize, forcing: bool) -> Frames {
+    /// Room for `capacity` samples; `forcing` when the hold's derivative
+    /// is needed. [`crate::Error::OutOfMemory`] when they cannot be had.
+    pub fn new(coef: &Coefficients, capacity: usize, forcing: bool) -> Result<Frames> {
         let (n, l, m) = (coef.n, coef.l, coef.m);
         let s = n + coef.r;
-        Frames {
+        let what = "the matrices of a block of samples";
+        Ok(Frames {
             n,
             l,
             m,
             s,
-            ad: vec![0.0; capacity * n * n],
-            c: vec![0.0; capacity * l * n],
-            psi1: vec![0.0; capacity * m],
+            ad: try_vec(capacity * n * n, 0.0, what)?,
+            c: try_vec(capacity * l * n, 0.0, what)?,
+            psi1: try_vec(capacity * m, 0.0, what)?,
             forcing: if forcing {
-                vec![0.0; capacity * n * s * n]
+                try_vec(
+                    capacity * n * s * n,
+                    0.0,
+                    "the hold's derivatives of a block of samples",
+                )?
             } else {
                 Vec::new()
             },
-        }
+        })
     }
 
     /// `Ad` at sample `k` of the block.

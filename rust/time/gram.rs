@@ -7,6 +7,8 @@
 //! multiplied.
 
 use super::columns::OutputColumn;
+use crate::error::Result;
+use crate::memory::{try_vec, try_zeros};
 use faer::linalg::matmul::matmul;
 use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -48,7 +50,7 @@ pub(super) struct ByOutput {
 }
 
 impl ByOutput {
-    pub fn new(output: &[OutputColumn], l: usize, block: usize) -> ByOutput {
+    pub fn new(output: &[OutputColumn], l: usize, block: usize) -> Result<ByOutput> {
         let index: Vec<Vec<usize>> = (0..l)
             .map(|j| (0..output.len()).filter(|&k| output[k].j == j).collect())
             .collect();
@@ -56,11 +58,21 @@ impl ByOutput {
             .iter()
             .map(|ix| ix.iter().map(|&k| output[k]).collect())
             .collect();
-        ByOutput {
-            values: cols.iter().map(|c| vec![0.0; block * c.len()]).collect(),
+        let values = cols
+            .iter()
+            .map(|c| {
+                try_vec(
+                    block * c.len(),
+                    0.0,
+                    "the output columns of a block of samples",
+                )
+            })
+            .collect::<Result<_>>()?;
+        Ok(ByOutput {
+            values,
             index,
             cols,
-        }
+        })
     }
 }
 
@@ -77,15 +89,24 @@ pub(super) struct Sums {
 }
 
 impl Sums {
-    pub fn new(n_state: usize, outs: &ByOutput) -> Sums {
+    pub fn new(n_state: usize, outs: &ByOutput) -> Result<Sums> {
         let cols = &outs.cols;
-        Sums {
-            gss: Mat::zeros(n_state, n_state),
-            jtr_s: Mat::zeros(n_state, 1),
-            cross: cols.iter().map(|c| Mat::zeros(c.len(), n_state)).collect(),
-            own: cols.iter().map(|c| Mat::zeros(c.len(), c.len())).collect(),
-            jtr_o: cols.iter().map(|c| Mat::zeros(c.len(), 1)).collect(),
-        }
+        let what = "the Gram sums of a thread";
+        let each = |rows: &dyn Fn(usize) -> (usize, usize)| -> Result<Vec<Mat<f64>>> {
+            cols.iter()
+                .map(|c| {
+                    let (r, k) = rows(c.len());
+                    try_zeros(r, k, what)
+                })
+                .collect()
+        };
+        Ok(Sums {
+            gss: try_zeros(n_state, n_state, what)?,
+            jtr_s: try_zeros(n_state, 1, what)?,
+            cross: each(&|len| (len, n_state))?,
+            own: each(&|len| (len, len))?,
+            jtr_o: each(&|len| (len, 1))?,
+        })
     }
 
     /// Add samples `a..b` of a block: state rows `js` (row-major, `l` rows
@@ -153,11 +174,11 @@ impl Sums {
     }
 
     /// `J^T J` and `J^T r` in engine order: state columns, then output columns.
-    pub fn assemble(&self, outs: &ByOutput, kcols: usize) -> Normal {
+    pub fn assemble(&self, outs: &ByOutput, kcols: usize) -> Result<Normal> {
         let (sum, l) = (self, outs.index.len());
         let n_state = sum.gss.nrows();
         // Assemble in engine order: state columns, then output columns.
-        let mut full = vec![0.0; kcols * kcols];
+        let mut full = try_vec(kcols * kcols, 0.0, "the Gram matrix of a time record")?;
         let mut put = |a: usize, b: usize, v: f64| {
             full[a + b * kcols] = v;
             full[b + a * kcols] = v;
@@ -182,10 +203,10 @@ impl Sums {
                 jtr[row] = sum.jtr_o[j][(p, 0)];
             }
         }
-        Normal {
+        Ok(Normal {
             k: kcols,
             gram: full,
             jtr,
-        }
+        })
     }
 }

@@ -40,6 +40,7 @@ mod sensitivity;
 
 pub use problem::TimeProblem;
 pub use record::{InitialState, Record};
+pub(crate) use sensitivity::BLOCK_ROWS;
 
 /// Seconds spent in each stage of a Gauss-Newton evaluation (summed over
 /// records and blocks of samples).

@@ -8,6 +8,7 @@ use super::sensitivity::{Normal, Pass};
 use super::StageTimes;
 use crate::error::{invalid, Result};
 use crate::layout::{FreeSet, Shape};
+use crate::memory::try_vec;
 use crate::objective::{GaussNewton, Objective};
 use crate::simulate::{simulate, simulate_zoh, Trajectory};
 use std::time::Instant;
@@ -289,7 +290,7 @@ impl TimeProblem {
             .collect();
         let mut vnls = 0.0;
         let mut gradient = vec![0.0; nf];
-        let mut gram = vec![0.0; nf * nf];
+        let mut gram = try_vec(nf * nf, 0.0, "the Gauss-Newton matrix J^T J")?;
         for k in 0..self.records.len() {
             let ev = self.evaluate(theta, &coef, k, columns.need_trajectory(), &mut times)?;
             vnls += ev.residual.iter().map(|v| v * v).sum::<f64>();

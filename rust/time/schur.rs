@@ -12,6 +12,7 @@
 
 use super::sensitivity::Normal;
 use crate::error::{Error, Result};
+use crate::memory::try_vec;
 use faer::{Mat, Side};
 
 /// Eigenvalues below this fraction of the largest count as zero.
@@ -76,7 +77,7 @@ pub(crate) fn eliminate(normal: &Normal, initial: &[usize]) -> Result<(Vec<f64>,
     let jtr = (0..p)
         .map(|a| normal.jtr[kept[a]] - (0..rank).map(|j| v[(a, j)] * wg[j]).sum::<f64>())
         .collect();
-    let mut gram = vec![0.0; p * p];
+    let mut gram = try_vec(p * p, 0.0, "the Gauss-Newton matrix of a time record")?;
     for b in 0..p {
         for a in b..p {
             let vv: f64 = (0..rank).map(|j| v[(a, j)] * v[(b, j)]).sum();

@@ -25,11 +25,12 @@ use super::gram::{ByOutput, Sums};
 use super::record::Record;
 use super::StageTimes;
 use crate::error::Result;
+use crate::memory::try_vec;
 use faer::MatMut;
 use std::time::Instant;
 
 /// Jacobian rows per block of samples (a multiple of 8).
-const BLOCK_ROWS: usize = 2048;
+pub(crate) const BLOCK_ROWS: usize = 2048;
 
 /// One pass over a record at one parameter vector.
 pub(crate) struct Pass<'a> {
@@ -78,10 +79,11 @@ struct Slice {
 }
 
 impl Slice {
-    fn new(cols: &[StateColumn], n: usize, l: usize) -> Slice {
+    fn new(cols: &[StateColumn], n: usize, l: usize) -> Result<Slice> {
         let width = cols.len();
         let padded = width.div_ceil(GROUP) * GROUP;
-        let mut s = vec![0.0; n * padded];
+        let what = "the state sensitivities";
+        let mut s = try_vec(n * padded, 0.0, what)?;
         let mut theta = Vec::new();
         for (k, col) in cols.iter().enumerate() {
             match *col {
@@ -89,14 +91,14 @@ impl Slice {
                 StateColumn::Theta { i, a, zb } => theta.push((k, i, a, zb)),
             }
         }
-        Slice {
+        Ok(Slice {
             theta,
             width,
             padded,
             s,
-            next: vec![0.0; n * padded],
-            ybuf: vec![0.0; l * padded],
-        }
+            next: try_vec(n * padded, 0.0, what)?,
+            ybuf: try_vec(l * padded, 0.0, what)?,
+        })
     }
 
     /// Write the Jacobian rows of samples `t0..t1` into the slice's
@@ -310,7 +312,11 @@ impl Pass<'_> {
         let n_state = self.columns.state.len();
         let block = (BLOCK_ROWS / l).max(8);
         // The state columns' rows of a block, row-major (row (t, j) at t l + j).
-        let mut jac = vec![0.0; block * l * n_state];
+        let mut jac = try_vec(
+            block * l * n_state,
+            0.0,
+            "the Jacobian of a block of samples",
+        )?;
         let mut rr = vec![0.0; block * l];
         let threads = rayon::current_num_threads().max(1);
         let pieces = threads.min(n_state).max(1);
@@ -319,12 +325,14 @@ impl Pass<'_> {
                 let (a, b) = (p * n_state / pieces, (p + 1) * n_state / pieces);
                 Slice::new(&self.columns.state[a..b], n, l)
             })
-            .filter(|s| s.width > 0)
-            .collect();
-        let mut outs = ByOutput::new(&self.columns.output, l, block);
+            .collect::<Result<Vec<_>>>()?;
+        slices.retain(|s| s.width > 0);
+        let mut outs = ByOutput::new(&self.columns.output, l, block)?;
         let forcing = self.hold.is_some() && self.columns.theta_state > 0;
-        let mut frames = Frames::new(self.coef, block, forcing);
-        let mut sums: Vec<Sums> = (0..threads).map(|_| Sums::new(n_state, &outs)).collect();
+        let mut frames = Frames::new(self.coef, block, forcing)?;
+        let mut sums: Vec<Sums> = (0..threads)
+            .map(|_| Sums::new(n_state, &outs))
+            .collect::<Result<_>>()?;
         for t0 in (0..total).step_by(block) {
             let t1 = (t0 + block).min(total);
             let (len, rows) = (t1 - t0, (t1 - t0) * l);
@@ -379,6 +387,6 @@ impl Pass<'_> {
             });
             times.gram += clock.elapsed().as_secs_f64();
         }
-        Ok(Sums::total(&mut sums).assemble(&outs, kcols))
+        Sums::total(&mut sums).assemble(&outs, kcols)
     }
 }

@@ -39,6 +39,7 @@ from lpvid.cost import gauss_newton
 from lpvid.data import FrfData, z_points
 from lpvid.errors import ConvergenceWarning
 from lpvid.layout import MATRICES, fixed_mask
+from lpvid.memory import check_covariance
 from lpvid.model import LpvModel
 from lpvid.similarity import free_similarity_directions
 
@@ -320,6 +321,7 @@ def covariance(
 
     """
     free = ~fixed_mask(model, fixed)
+    check_covariance(model, data, free)
     v, _, jtj = gauss_newton(model, data, fixed)
     T = free_similarity_directions(model, free)
     inv, rank, n_sim, dropped = pseudo_inverse(jtj, T)

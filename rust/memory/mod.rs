@@ -1,0 +1,191 @@
+//! Memory: the large arrays of a fit allocated fallibly, and the estimate
+//! of what a fit needs ([`estimate`]) so that a run too large for the
+//! machine is refused before it starts.
+//!
+//! Rust aborts the process when an ordinary allocation fails, and faer's
+//! constructors panic; neither may happen inside Python. Every array whose
+//! size grows with the problem (the Gauss-Newton matrix, the per-point Gram
+//! matrices and their pieces, the residuals, the cone step's dense block,
+//! the time records' Jacobian blocks) is made here instead, and a failure
+//! is [`Error::OutOfMemory`] with the size and the purpose of the array.
+//! What is left to infallible allocation is small (vectors over the free
+//! parameters, per-line scratch). Clarabel allocates its own arrays; the
+//! cone step first checks that its estimate can be had ([`probe`]).
+
+pub mod estimate;
+
+use crate::error::{Error, Result};
+use faer::Mat;
+use std::cell::Cell;
+use std::sync::atomic::{AtomicI64, Ordering};
+
+thread_local! {
+    /// Set while this thread allocates through a fallible helper, or inside
+    /// a call that was probed first (Clarabel's set-up).
+    static GUARDED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Whether the allocation this thread is making goes through a fallible
+/// helper or a probed call: for a test's allocator that checks that every
+/// large array of a fit is made so.
+#[doc(hidden)]
+pub fn guarded_allocation() -> bool {
+    GUARDED.with(Cell::get)
+}
+
+/// Run `f` with this thread's allocations marked as guarded.
+pub(crate) fn guarded<T>(f: impl FnOnce() -> T) -> T {
+    let before = GUARDED.with(|g| g.replace(true));
+    let out = f();
+    GUARDED.with(|g| g.set(before));
+    out
+}
+
+/// Test hook: how many fallible allocations may still succeed before one
+/// fails (negative: none is made to fail).
+static FAIL_AFTER: AtomicI64 = AtomicI64::new(-1);
+
+/// Make the fallible allocation after the next `count` fail (once), or
+/// none with `None`: for tests of the out-of-memory path. The count is
+/// shared by all threads.
+#[doc(hidden)]
+pub fn fail_allocation_after(count: Option<usize>) {
+    let v = count.map_or(-1, |c| i64::try_from(c).unwrap_or(i64::MAX));
+    FAIL_AFTER.store(v, Ordering::SeqCst);
+}
+
+/// Whether the test hook is armed and has not fired yet.
+#[doc(hidden)]
+pub fn allocation_failure_pending() -> bool {
+    FAIL_AFTER.load(Ordering::SeqCst) >= 0
+}
+
+/// Whether the test hook fails this allocation.
+fn injected() -> bool {
+    if FAIL_AFTER.load(Ordering::Relaxed) < 0 {
+        return false;
+    }
+    let before = FAIL_AFTER.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |c| match c {
+        c if c > 0 => Some(c - 1),
+        0 => Some(-1),
+        _ => None,
+    });
+    before == Ok(0)
+}
+
+/// A size in bytes for people: `1.25 GB`, `340 MB`, `12 kB`.
+pub fn human(bytes: usize) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.2} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else if b >= 1e3 {
+        format!("{:.0} kB", b / 1e3)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
+/// [`Error::OutOfMemory`] for an allocation of `bytes` for `what` that
+/// failed elsewhere (a library's own fallible constructor).
+pub fn out_of_memory_for(bytes: usize, what: &'static str) -> Error {
+    Error::OutOfMemory { bytes, what }
+}
+
+use out_of_memory_for as out_of_memory;
+
+/// `len` copies of `value`, or [`Error::OutOfMemory`] naming `what`.
+pub fn try_vec<T: Clone>(len: usize, value: T, what: &'static str) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    try_grow(&mut v, len, what)?;
+    v.resize(len, value);
+    Ok(v)
+}
+
+/// Make room for `additional` more elements in `v` (exactly), or
+/// [`Error::OutOfMemory`] naming `what`.
+pub fn try_grow<T>(v: &mut Vec<T>, additional: usize, what: &'static str) -> Result<()> {
+    let bytes = v
+        .len()
+        .saturating_add(additional)
+        .saturating_mul(std::mem::size_of::<T>());
+    if bytes == 0 {
+        return Ok(());
+    }
+    if injected() {
+        return Err(out_of_memory(bytes, what));
+    }
+    guarded(|| v.try_reserve_exact(additional)).map_err(|_| out_of_memory(bytes, what))
+}
+
+/// A `rows x cols` matrix with entries `f(i, j)`, or
+/// [`Error::OutOfMemory`] naming `what`.
+pub fn try_mat(
+    rows: usize,
+    cols: usize,
+    f: impl FnMut(usize, usize) -> f64,
+    what: &'static str,
+) -> Result<Mat<f64>> {
+    let bytes = rows.saturating_mul(cols).saturating_mul(8);
+    if bytes > 0 && injected() {
+        return Err(out_of_memory(bytes, what));
+    }
+    let mut m = Mat::new();
+    guarded(|| m.try_reserve(rows, cols)).map_err(|_| out_of_memory(bytes, what))?;
+    // Within the capacity just reserved: no further allocation.
+    m.resize_with(rows, cols, f);
+    Ok(m)
+}
+
+/// A `rows x cols` matrix of zeros, or [`Error::OutOfMemory`] naming `what`.
+pub fn try_zeros(rows: usize, cols: usize, what: &'static str) -> Result<Mat<f64>> {
+    try_mat(rows, cols, |_, _| 0.0, what)
+}
+
+/// Check that `bytes` can be allocated now, and give them back: before a
+/// library call that allocates about that much and would abort the
+/// process if it could not (Clarabel). Not a guarantee (another thread may
+/// take the memory meanwhile), but it turns the common case, a limit the
+/// run is far beyond, into [`Error::OutOfMemory`].
+pub fn probe(bytes: usize, what: &'static str) -> Result<()> {
+    let mut v: Vec<u8> = Vec::new();
+    try_grow(&mut v, bytes, what)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_impossible_allocation_is_an_error_naming_its_size() {
+        // More than any address space: the allocator refuses at once.
+        let len = usize::MAX / 16;
+        let e = try_vec(len, 0.0f64, "a test array").unwrap_err();
+        match &e {
+            Error::OutOfMemory { bytes, what } => {
+                assert_eq!(*bytes, len * 8);
+                assert_eq!(*what, "a test array");
+            }
+            other => panic!("expected OutOfMemory, got {other:?}"),
+        }
+        assert!(e.to_string().contains("GB for a test array"), "{e}");
+        let e = try_zeros(1 << 31, 1 << 31, "a test matrix").unwrap_err();
+        // 2^62 entries of 8 bytes: the size saturates.
+        assert!(matches!(e, Error::OutOfMemory { bytes, .. } if bytes == usize::MAX));
+        assert!(probe(usize::MAX / 2, "a probe").is_err());
+    }
+
+    #[test]
+    fn possible_allocations_hold_what_was_asked() {
+        let v = try_vec(1000, 2.5f64, "v").unwrap();
+        assert_eq!(v.len(), 1000);
+        assert!(v.iter().all(|&x| x == 2.5));
+        let m = try_mat(3, 4, |i, j| (10 * i + j) as f64, "m").unwrap();
+        assert_eq!((m.nrows(), m.ncols()), (3, 4));
+        assert_eq!(m[(2, 3)], 23.0);
+        assert!(probe(1 << 20, "a probe").is_ok());
+        assert_eq!(human(2_950_000_000), "2.95 GB");
+        assert_eq!(human(340_000_000), "340 MB");
+    }
+}
