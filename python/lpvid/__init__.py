@@ -45,6 +45,7 @@ from lpvid.timedata import TimeData
 from lpvid.timefit import fit_time
 from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
 from lpvid.trust.covariance import covariance
+from lpvid.trust.nextpoints import Suggestion, next_points, suggest_points
 from lpvid.trust.refit import refit
 from lpvid.trust.stability import stability
 
@@ -72,6 +73,7 @@ __all__ = [
     "SelectResult",
     "SingularModelError",
     "StabilityReport",
+    "Suggestion",
     "TimeCost",
     "TimeData",
     "__version__",
@@ -95,6 +97,7 @@ __all__ = [
     "judge",
     "l21_path",
     "multisine",
+    "next_points",
     "order_hints",
     "plots",
     "readers",
@@ -105,6 +108,7 @@ __all__ = [
     "smile",
     "smile_candidates",
     "stability",
+    "suggest_points",
     "time_residual",
     "time_vnls",
     "trust",
