@@ -99,6 +99,16 @@ def test_the_greedy_choice_spreads_its_points(even):
     assert np.all(s.band_after <= s.band * (1 + 1e-9))
 
 
+def test_candidates_the_covariance_cannot_tell_apart_go_to_the_largest_gap():
+    # An LTI model (no basis function) with the same noise at every candidate:
+    # every candidate promises the same, and the tie goes to the one farthest
+    # from the measured (and already chosen) points.
+    true = one_group_lpv(0, n=2)
+    data = noisy_data(true, [0.0, 0.2, 1.0], LINES, np.random.default_rng(0), 0.01)
+    res = _identify(data, lpvid.Polynomial(0, domain=(0.0, 1.0)))
+    np.testing.assert_allclose(lpvid.next_points(res, k=3, sigma=data.sigma[0]), [0.6, 0.4, 0.8])
+
+
 def _plane():
     """One mode at 20 Hz moving with two scheduling parameters on [0, 1]^2, and its data."""
     basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)])
@@ -165,3 +175,37 @@ def test_a_result_without_covariance_or_of_another_kind(even):
         lpvid.next_points(dataclasses.replace(res, covariance=None))
     with pytest.raises(TypeError, match="IdentifyResult"):
         lpvid.next_points(res.covariance)
+
+
+def _gid(ax, gid):
+    found = [a for a in [*ax.lines, *ax.collections] if a.get_gid() == gid]
+    assert len(found) == 1, gid
+    return found[0]
+
+
+def test_the_figure_draws_the_suggestion(even, plt):
+    _, res = even
+    s = lpvid.suggest_points(res, k=2)
+    fig = lpvid.plots.suggested_points(s, p_label="load [kg]", title="next")
+    (ax,) = fig.axes
+    np.testing.assert_allclose(_gid(ax, "band").get_ydata(), 100 * s.band)
+    np.testing.assert_allclose(_gid(ax, "band-after").get_ydata(), 100 * s.band_after)
+    np.testing.assert_allclose(_gid(ax, "measured").get_xdata(), EVEN)
+    np.testing.assert_allclose(_gid(ax, "suggested").get_xdata(), s.points)
+    assert ax.get_xlabel() == "load [kg]" and fig.get_suptitle() == "next"
+
+
+def test_the_figure_of_two_parameters_and_its_refusals(plt):
+    grid, res = _plane()
+    s = lpvid.suggest_points(res, k=1)
+    fig = lpvid.plots.suggested_points(s, p_label="x [m], y [m]")
+    now, after = fig.axes[:2]
+    np.testing.assert_allclose(np.ravel(_gid(now, "band").get_array()), 100 * s.band)
+    np.testing.assert_allclose(np.ravel(_gid(after, "band-after").get_array()), 100 * s.band_after)
+    np.testing.assert_allclose(np.c_[_gid(now, "measured").get_data()], grid)
+    assert now.get_xlabel() == "x [m]" and now.get_ylabel() == "y [m]"
+    three = dataclasses.replace(s, grid=np.zeros((4, 3)), points=np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="one or two scheduling parameters"):
+        lpvid.plots.suggested_points(three)
+    with pytest.raises(TypeError, match="Suggestion"):
+        lpvid.plots.suggested_points(res)

@@ -133,11 +133,14 @@ def greedy_update(
     w: NDArray[np.float64],
     R: NDArray[np.float64],
     k: int,
+    where: NDArray[np.float64],
+    measured: NDArray[np.float64],
 ) -> tuple[list[int], NDArray[np.float64], NDArray[np.float64]]:
     """Choose ``k`` candidates greedily, each the one that lowers ``tr(C W)`` most.
 
-    Reductions within :data:`TIE` (relative) of the largest tie; the first
-    such candidate is taken.
+    Reductions within :data:`TIE` (relative) of the largest tie: of those,
+    the candidate farthest from every measured and every chosen point is
+    taken (the first of equally far ones).
 
     Parameters
     ----------
@@ -154,6 +157,10 @@ def greedy_update(
         on its frozen parameters (:func:`factor`).
     k : int
         Points to choose (at most M).
+    where : ndarray, shape (M, Np)
+        The candidates' scheduling values, scaled (for the tie-break).
+    measured : ndarray, shape (N, Np)
+        The measured scheduling values, scaled alike.
 
     Returns
     -------
@@ -167,11 +174,14 @@ def greedy_update(
     available = np.ones(len(w), dtype=bool)
     picks: list[int] = []
     values = [float(np.sum(C * W))]
+    gap = np.min(np.linalg.norm(where[:, None, :] - measured[None, :, :], axis=2), axis=1)
     for _ in range(k):
         red = np.where(available, _reductions(C, C @ W @ C, index, w, R), -np.inf)
         best = float(red.max())
-        c = int(np.flatnonzero(red >= best - TIE * abs(best))[0])
+        tied = np.flatnonzero(red >= best - TIE * abs(best))
+        c = int(tied[np.argmax(gap[tied])])
         C = updated(C, index, w[c], R[c])
+        gap = np.minimum(gap, np.linalg.norm(where - where[c], axis=1))
         available[c] = False
         picks.append(c)
         values.append(float(np.sum(C * W)))

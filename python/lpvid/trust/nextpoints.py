@@ -281,7 +281,14 @@ def suggest_points(
     W = target(parts, index)
     R = factor(frozen_grams(model, f, cands, 1.0 / _noise(data, cands, pairs, sigma) ** 2))
     picks, variance, after = greedy_update(
-        cov.theta, W, index, coefficient_weights(model, cands), R, k
+        cov.theta,
+        W,
+        index,
+        coefficient_weights(model, cands),
+        R,
+        k,
+        _scaled(cands, pairs),
+        _scaled(data.p.reshape(data.n_points, -1), pairs),
     )
     points = cands[picks]
     return Suggestion(
