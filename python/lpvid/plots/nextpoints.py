@@ -141,26 +141,11 @@ def _two(fig: Any, s: Suggestion, p_label: str) -> None:
             gid=gid,
             rasterized=True,
         )
-        ax.plot(
-            *s.measured.T,
-            ls="",
-            marker="o",
-            ms=6,
-            mfc="white",
-            mec="0.2",
-            gid="measured",
-            clip_on=False,
-        )
-        ax.plot(
-            *s.points.T,
-            ls="",
-            marker="*",
-            ms=14,
-            color="C2",
-            mec="white",
-            gid="suggested",
-            clip_on=False,
-        )
+        for pts, gid, style in (
+            (s.measured, "measured", {"marker": "o", "ms": 6, "mfc": "white", "mec": "0.2"}),
+            (s.points, "suggested", {"marker": "*", "ms": 14, "color": "C2", "mec": "white"}),
+        ):
+            ax.plot(*pts.T, ls="", gid=gid, clip_on=False, **style)
         for k, pt in enumerate(s.points):
             ax.annotate(str(k + 1), pt, xytext=(5, 5), textcoords="offset points", color="white")
         ax.set_title(text, fontsize="medium")

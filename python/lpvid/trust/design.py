@@ -34,9 +34,10 @@ __all__ = [
 _KEPT_ENTRIES = 25_000_000
 #: Complex Jacobian entries per call to the core (memory of one chunk).
 _CHUNK_ENTRIES = 2_000_000
-#: Relative margin within which two candidates' reductions tie (the first
-#: wins): the reductions are accurate to about eps times the condition number
-#: of the information matrix, 1e13 for a 10-state model from three points.
+#: Relative margin within which the criterion after two candidates ties:
+#: predicted mean variances within 0.1 % of the lowest (bands within 0.05 %)
+#: promise the same. The update agrees with an exact recomputation to about
+#: 1e-7 of that variance on the benchmark's systems.
 TIE = 1e-3
 
 
@@ -138,9 +139,9 @@ def greedy_update(
 ) -> tuple[list[int], NDArray[np.float64], NDArray[np.float64]]:
     """Choose ``k`` candidates greedily, each the one that lowers ``tr(C W)`` most.
 
-    Reductions within :data:`TIE` (relative) of the largest tie: of those,
-    the candidate farthest from every measured and every chosen point is
-    taken (the first of equally far ones).
+    Candidates whose ``tr(C' W)`` lies within :data:`TIE` (relative) of
+    the lowest tie: of those, the one farthest from every measured and every
+    chosen point is taken (the first of equally far ones).
 
     Parameters
     ----------
@@ -176,9 +177,10 @@ def greedy_update(
     values = [float(np.sum(C * W))]
     gap = np.min(np.linalg.norm(where[:, None, :] - measured[None, :, :], axis=2), axis=1)
     for _ in range(k):
-        red = np.where(available, _reductions(C, C @ W @ C, index, w, R), -np.inf)
-        best = float(red.max())
-        tied = np.flatnonzero(red >= best - TIE * abs(best))
+        after = values[-1] - _reductions(C, C @ W @ C, index, w, R)
+        after = np.where(available, after, np.inf)
+        best = float(after.min())
+        tied = np.flatnonzero(after <= best + TIE * abs(best))
         c = int(tied[np.argmax(gap[tied])])
         C = updated(C, index, w[c], R[c])
         gap = np.minimum(gap, np.linalg.norm(where - where[c], axis=1))
