@@ -23,6 +23,17 @@ candidate costs a solve of the size of one frozen model's parameters.
 ``k > 1`` points are chosen greedily: each chosen point updates ``C``
 before the next is chosen (a point is never suggested twice).
 
+**Ties.** Candidates whose predicted ``U`` lies within
+:data:`lpvid.trust.design.TIE` (0.1 %) of the lowest promise the same;
+the one farthest from every measured (and already chosen) point is taken.
+
+**Candidates.** By default a grid over the range (the model's basis
+domain, else the data's range): 101 values for one parameter, 21 per
+parameter for two, 9 for three, 5 beyond; ``U`` is averaged on the same
+grid. Candidates outside the range are refused (the basis extrapolates
+there); measured values are left out (one FRF per scheduling value), and
+repeated candidates count once.
+
 **The new measurement's noise.** ``sigma_c`` is by default the data's
 sigma at the measured point nearest ``p_c`` (each scheduling parameter
 scaled to its range), or what the caller gives.
@@ -318,7 +329,7 @@ def next_points(
 
     Examples
     --------
-    >>> import numpy as np, lpvid
+    >>> import numpy as np, lpvid, lpvid.testing
     >>> true = lpvid.testing.one_group_lpv(0, n=2)
     >>> f = np.linspace(5, 60, 40)
     >>> data = lpvid.testing.noisy_data(true, [0.0, 0.3, 0.6, 1.0], f,
