@@ -68,8 +68,10 @@ def test_the_update_is_the_covariance_recomputed_with_the_point(even):
 
 def test_the_suggestion_goes_where_the_uncertainty_is():
     # Five even points, the one at 0.75 measured 30 times noisier: the band
-    # is widest around it, and a new measurement with the ordinary noise goes
-    # there, not to the middle of the first largest gap (0.125).
+    # is wider on its side, and a new measurement with the ordinary noise goes
+    # there, not to the middle of the first largest gap (0.125). (The case
+    # where the suggestion beat the gap in 16 of 20 seeds of
+    # benches/bench_next.py --cases one-noisy-end.)
     true = one_group_lpv(0, n=2)
     rng = np.random.default_rng(1)
     data = noisy_data(true, EVEN, LINES, rng, 0.01)
