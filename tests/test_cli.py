@@ -135,6 +135,10 @@ MISUSE = [
     ("lines-unknown", [*FIT, "--lines", "all"], "--lines"),
     ("lines-without-a-manifest", [*FIT, "--lines", "common"], "--lines"),
     ("data-bad-manifest", ["fit", "{f}/bad.toml", "--order", "6", "--out", "{out}"], "data"),
+    # --suggest
+    ("suggest-zero", [*FIT, "--suggest", "0"], "--suggest"),
+    ("suggest-not-a-number", [*FIT, "--suggest", "two"], "--suggest"),
+    ("suggest-more-than-the-grid", [*FIT, "--suggest", "100"], "--suggest"),
     # --out
     ("out-missing", ["fit", "{f}/id.npz", "--order", "6"], "--out"),
     ("out-is-a-file", [*FIT[:5], "{f}/a-file"], "--out"),
@@ -199,3 +203,16 @@ def test_demo_on_the_stage_runs(tmp_path, capsys):
     assert numbers["validation_vnls"] == pytest.approx(lpvid.vnls(model, ds.validation), rel=1e-12)
     assert f"{numbers['vnls']:.6g}" in printed
     assert not (out / "figures").exists()
+
+
+def test_fit_suggests_where_to_measure_next(files, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = [a.format(f=files, out=out) for a in FIT]
+    assert main([*argv, "--suggest", "2", "--no-figures", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "where to measure next" in printed
+    data = lpvid.FrfData.load(files / "id.npz")
+    points = [float(m) for m in re.findall(r"^  \d\. p = ([-\d.e]+):", printed, re.M)]
+    assert len(points) == 2 and len(set(points)) == 2
+    lo, hi = data.p_range
+    assert all(lo <= p <= hi and not np.any(np.isclose(p, data.p)) for p in points)

@@ -52,9 +52,16 @@ def child(code: str, limit_mb: float | None = None) -> dict:
             return int(re.search(r"VmSize:\\s+(\\d+)", status).group(1)) * 1024
         limit_mb = {limit_mb!r}
         if limit_mb is not None:
-            # Start the core's threads first (their stacks count).
+            # Start the core's threads first, and have each allocate: their
+            # stacks and glibc's per-thread arenas (64 MB of address space
+            # each, mapped at a thread's first allocation, which may come
+            # after the call that started it) count.
+            import lpvid.testing
             lpvid.available_memory()
-            lpvid._core.fit_memory(1, 1, 1, 0, "lm")
+            _rng = np.random.default_rng(0)
+            _m = lpvid.testing.random_lpv(_rng, n=4, r=2, l=2, nb=1)
+            _d = lpvid.testing.noisy_data(_m, [0.0, 0.5, 1.0], np.linspace(1, 40, 64), _rng)
+            lpvid.fit_nls(_m, _d, max_iter=1, warn=False)
             hard = resource.getrlimit(resource.RLIMIT_AS)[1]
             resource.setrlimit(resource.RLIMIT_AS, (in_use() + int(limit_mb * 1e6), hard))
         """

@@ -46,6 +46,7 @@ from lpvid.timedata import TimeData
 from lpvid.timefit import fit_time
 from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
 from lpvid.trust.covariance import covariance
+from lpvid.trust.nextpoints import Suggestion, next_points, suggest_points
 from lpvid.trust.refit import refit
 from lpvid.trust.stability import stability
 
@@ -73,6 +74,7 @@ __all__ = [
     "SelectResult",
     "SingularModelError",
     "StabilityReport",
+    "Suggestion",
     "TimeCost",
     "TimeData",
     "__version__",
@@ -98,6 +100,7 @@ __all__ = [
     "judge",
     "l21_path",
     "multisine",
+    "next_points",
     "order_hints",
     "plots",
     "readers",
@@ -108,6 +111,7 @@ __all__ = [
     "smile",
     "smile_candidates",
     "stability",
+    "suggest_points",
     "time_residual",
     "time_vnls",
     "trust",

@@ -26,6 +26,7 @@ __all__ = [
     "one_line",
     "out_dir",
     "printer",
+    "suggest_count",
 ]
 
 EXIT_MISUSE = 2
@@ -209,3 +210,16 @@ def labels_of(data: lpvid.FrfData) -> dict[str, Any]:
 
 def one_line(exc: Exception) -> str:
     return " ".join(str(exc).split())
+
+
+def suggest_count(k: int, basis: lpvid.Basis, data: lpvid.FrfData) -> None:
+    """Refuse ``--suggest K`` with K < 1 or more than the candidates not measured yet."""
+    if k < 1:
+        raise Misuse(f"--suggest: expected a positive number of points, got {k}")
+    p_range = getattr(basis, "domain", None) or data.p_range
+    free = len(lpvid.trust.nextpoints.default_candidates(p_range, data.p))
+    if k > free:
+        raise Misuse(
+            f"--suggest: {k} points asked for, but the grid over the scheduling range has "
+            f"{free} values that are not measured yet"
+        )

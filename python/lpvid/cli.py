@@ -29,6 +29,7 @@ from lpvid._cliargs import (
     one_line,
     out_dir,
     printer,
+    suggest_count,
 )
 from lpvid.figures import FigurePool
 
@@ -132,6 +133,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="with a manifest: files must share their frequency lines (same, default) or "
         "only the lines all files have are kept (common)",
     )
+    fit.add_argument(
+        "--suggest",
+        type=int,
+        metavar="K",
+        help="also print the K scheduling values where one more FRF measurement would shrink "
+        "the model's uncertainty bands most (lpvid.next_points), with a figure",
+    )
     add_outputs(fit)
     select_cli.add_parser(sub)
     return parser
@@ -169,6 +177,20 @@ def _figure_pool(figures: bool, say: Any) -> Iterator[Executor | None]:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _suggest(result: lpvid.IdentifyResult, k: int, out: str, figures: bool, p_label: Any) -> None:
+    """Print where to measure next and, with figures, draw ``figures/suggested.png``."""
+    suggestion = lpvid.suggest_points(result, k=k)
+    print()
+    print(suggestion.summary())
+    drawable = result.data.n_params <= 2 and importlib.util.find_spec("matplotlib") is not None
+    if figures and drawable:
+        path = Path(out) / "figures" / "suggested.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        label = p_label or "scheduling p"
+        lpvid.plots.save(lpvid.plots.suggested_points(suggestion, p_label=label), path)
+        print(f"figure: {path}")
+
+
 def _run(
     result_of: Any,
     out: str,
@@ -176,6 +198,7 @@ def _run(
     say: Any,
     title: str,
     description: str | None,
+    suggest: int | None = None,
     **labels: Any,
 ) -> int:
     # The figures' worker processes start now and import matplotlib while
@@ -189,6 +212,8 @@ def _run(
     _print_result(result)
     print(f"report: {path}")
     print(f"model: {Path(out) / 'model.json'} (and model.mat for MATLAB)")
+    if suggest:
+        _suggest(result, suggest, out, figures, labels.get("p_label"))
     return 0
 
 
@@ -231,6 +256,8 @@ def _fit(args: argparse.Namespace) -> int:
         )
     data, validation = load_data(args)
     basis = basis_of(args.basis, args.domain, data, validation)
+    if args.suggest is not None:
+        suggest_count(args.suggest, basis, data)
     say(f"data: {data}")
 
     def go() -> lpvid.IdentifyResult:
@@ -249,7 +276,14 @@ def _fit(args: argparse.Namespace) -> int:
             raise misuse(exc) from exc
 
     return _run(
-        go, args.out, not args.no_figures, say, f"lpvid fit: {args.data}", None, **labels_of(data)
+        go,
+        args.out,
+        not args.no_figures,
+        say,
+        f"lpvid fit: {args.data}",
+        None,
+        suggest=args.suggest,
+        **labels_of(data),
     )
 
 

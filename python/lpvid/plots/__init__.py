@@ -24,6 +24,9 @@ frf_band
 frf_std_map
     The band relative to the model FRF over frequency and scheduling: how
     the uncertainty grows between the measured points.
+suggested_points
+    The band over the scheduling range now and after the points
+    :func:`lpvid.suggest_points` suggests, with the measured points.
 group_norms
     Relative group magnitudes of one or several models, per matrix and basis
     function.
@@ -41,6 +44,7 @@ from lpvid.plots.bars import group_norms
 from lpvid.plots.files import save
 from lpvid.plots.frf import frf_fit
 from lpvid.plots.grid import select_grid
+from lpvid.plots.nextpoints import suggested_points
 from lpvid.plots.path import accuracy_path
 from lpvid.plots.surface import magnitude_surface
 
@@ -53,4 +57,5 @@ __all__ = [
     "magnitude_surface",
     "save",
     "select_grid",
+    "suggested_points",
 ]

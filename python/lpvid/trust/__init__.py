@@ -1,7 +1,7 @@
 """Trusting a model between the points: parameter covariance, FRF bands, stability over the range.
 
 The functions are exported at the top level: :func:`lpvid.covariance`,
-:func:`lpvid.stability`, :func:`lpvid.refit`; ``stable=True`` of
+:func:`lpvid.stability`, :func:`lpvid.refit`, :func:`lpvid.next_points`; ``stable=True`` of
 :func:`lpvid.fit_nls`, :func:`lpvid.fit_l21` and :func:`lpvid.identify`
 keeps stability during a fit.
 
@@ -24,6 +24,11 @@ ranges
     Scheduling ranges for stability statements, and ``A(p)`` as a polynomial.
 steps
     The steps :func:`lpvid.identify` adds (stable start, refit, covariance).
+nextpoints
+    :func:`lpvid.next_points`, :func:`lpvid.suggest_points`: where one more
+    FRF measurement would shrink the model's bands most.
+design
+    The information algebra behind it (frozen information, low-rank updates).
 """
 
 from lpvid.trust.covariance import Covariance, band_radius

@@ -95,6 +95,8 @@ class Covariance:
         ``covariance(..., scale=True)``.
     vnls, noise_floor : float, int
         V_NLS of the model on the data and its noise floor.
+    free : ndarray of bool, shape (P,)
+        The parameters that were free (neither fixed nor held).
     """
 
     model: LpvModel
@@ -106,6 +108,7 @@ class Covariance:
     factor: float
     vnls: float
     noise_floor: int
+    free: NDArray[np.bool_] = field(repr=False)
     _index: NDArray[np.int_] = field(repr=False)
 
     @property
@@ -126,11 +129,7 @@ class Covariance:
         ndarray, shape (M, L, L)
             ``L`` the number of parameters of one frozen model.
         """
-        psi = self.model.basis_values(p)
-        w = np.concatenate([np.ones((psi.shape[0], 1)), psi], axis=1)
-        idx = self._index
-        blocks = self.theta[idx[:, :, None, None], idx[None, None, :, :]]
-        return np.einsum("mi,iujv,mj->muv", w, blocks, w, optimize=True)
+        return frozen_blocks(self.theta, self._index, coefficient_weights(self.model, p))
 
     def frf_std(self, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.float64]:
         """Standard deviation of the model FRF at any frequencies and scheduling values.
@@ -227,6 +226,29 @@ class Covariance:
             f"{self.n_similarity} similarity directions, "
             f"{self.n_unidentified} unidentified)"
         )
+
+
+def coefficient_weights(model: LpvModel, p: ArrayLike) -> NDArray[np.float64]:
+    """``[1, psi_1(p), ..., psi_Nb(p)]`` at every point: shape (M, Nb+1).
+
+    The frozen parameter ``u`` at ``p`` is ``sum_i w_i theta[index[i, u]]``
+    (``index`` from :func:`_lti_index`).
+    """
+    psi = model.basis_values(p)
+    return np.concatenate([np.ones((psi.shape[0], 1)), psi], axis=1)
+
+
+def frozen_blocks(
+    matrix: NDArray[np.float64], index: NDArray[np.int_], w: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """A (P, P) form on theta seen on the frozen parameters at every point: (M, L, L).
+
+    ``sum_ij w[m, i] w[m, j] matrix[index[i, u], index[j, v]]``: for a
+    covariance of theta, the covariance of the frozen parameters at the
+    points whose coefficient weights are ``w``.
+    """
+    blocks = matrix[index[:, :, None, None], index[None, None, :, :]]
+    return np.einsum("mi,iujv,mj->muv", w, blocks, w, optimize=True)
 
 
 def _lti_index(model: LpvModel) -> NDArray[np.int_]:
@@ -353,5 +375,6 @@ def covariance(
         factor=factor,
         vnls=float(v),
         noise_floor=floor,
+        free=free,
         _index=_lti_index(model),
     )
