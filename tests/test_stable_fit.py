@@ -164,7 +164,7 @@ def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
         )
         e, r = res.entry, res.refit_entry
         assert res.refit is not None and r is not None
-        better = r.validation_vnls < (1 - 1e-3) * e.validation_vnls
+        better = r.validation_vnls < (1 - lpvid.trust.refit.REFIT_MARGIN) * e.validation_vnls
         assert res.refitted == better
         seen[better] += 1
         assert res.final.validation_vnls <= e.validation_vnls
