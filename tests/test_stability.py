@@ -12,6 +12,7 @@ from lpvid import _core
 from lpvid.frozen import frozen_A, stability_margin
 from lpvid.testing import random_lpv
 from lpvid.trust.lyapunov import quadratic_stability
+from lpvid.trust.ranges import polynomial_A
 from lpvid.trust.stability import margins
 
 
@@ -78,6 +79,48 @@ def test_a_narrow_unstable_window_is_found():
     assert margins(m, np.linspace(0, 1, 2001)).min() > 0
     p0 = (s0 + 1) / 2
     assert margins(m, np.linspace(p0 - 1e-4, p0 + 1e-4, 2001)).min() < 0
+
+
+def test_a_window_only_the_crossings_reveal():
+    # Continuous time, x' = a(s) x with a(s) = 1e-8 - (s - s0)^2: unstable only for
+    # |s - s0| < 1e-4. The margin -a / |a| is +1 everywhere else, flat: no sampled
+    # minimum points a local search at the window, so only the scan between the
+    # computed crossings (s0 -+ 1e-4) can find it.
+    s0 = 0.3055  # 5e-4 from the nearest point of the scan's grids and of the one below
+    m = _scalar([1e-8 - s0**2, 2 * s0, -1.0], Ts=None)
+    p0 = (s0 + 1) / 2
+    assert margins(m, np.linspace(0, 1, 2001)).min() == 1.0  # a grid alone sees nothing
+    assert margins(m, [p0]).item() == -1.0  # the truth: a > 0 at s0
+    rep = lpvid.stability(m, quadratic=False)
+    assert rep.method == "crossings" and not rep.stable
+    assert rep.margin == -1.0 and abs(rep.worst_p - p0) < 0.5e-4
+    np.testing.assert_allclose(np.sort(rep.crossings), [p0 - 0.5e-4, p0 + 0.5e-4], atol=1e-9)
+
+
+def test_the_grid_method_trusts_its_refined_minimum():
+    # A basis without the crossing test (a custom function): a(p) = 0.5 + (0.5 + 1e-6)
+    # exp(-((p - p0) / 0.05)^2) exceeds 1 for |p - p0| < 1e-4 only, between two points
+    # of the 2001-point grid over [0, 3] (spacing 1.5e-3). Every sampled margin is
+    # positive; the local search from the smallest one finds the window, and the
+    # verdict must follow it.
+    p0 = 1.50075
+
+    def bump(p):
+        return np.exp(-(((p - p0) / 0.05) ** 2))
+
+    m = lpvid.LpvModel(
+        [[[0.5]], [[0.5 + 1e-6]]],
+        [[[1.0]], [[0.0]]],
+        [[[1.0]], [[0.0]]],
+        basis=lpvid.CustomBasis([bump]),
+        Ts=1.0,
+        p_range=(0.0, 3.0),
+    )
+    assert margins(m, np.linspace(0.0, 3.0, 2001)).min() > 0
+    rep = lpvid.stability(m, quadratic=False)
+    assert rep.method == "grid" and not rep.stable
+    assert rep.margin == pytest.approx(-1e-6, rel=1e-4)
+    assert rep.worst_p == pytest.approx(p0, abs=1e-5)
 
 
 def test_continuous_time_pair_crossing_the_axis():
@@ -234,3 +277,39 @@ def test_without_clarabel_quadratic_is_none(monkeypatch):
     assert rep.stable and rep.quadratic is None and "lpvid[lmi]" in rep.note
     q, cert, note = quadratic_stability(np.array([[[0.5]]]), True)
     assert q is None and cert is None
+
+
+@pytest.mark.parametrize("Ts", [1.0, None])
+def test_the_certificate_does_not_trust_the_solver(monkeypatch, Ts):
+    # A solver that overstates its eps by 0.5: the identity it returns no longer holds,
+    # and the certified bound must still be a true lower bound of F(t), checked on a
+    # fine grid; on a family with no common Lyapunov matrix it must certify nothing.
+    clarabel = pytest.importorskip("clarabel")
+    honest = clarabel.DefaultSolver
+
+    class Overstating:
+        def __init__(self, *args):
+            self.inner = honest(*args)
+
+        def solve(self):
+            sol = self.inner.solve()
+            x = np.array(sol.x, dtype=float)
+            x[-1] += 0.5  # eps is the last variable
+            return type("Solution", (), {"x": x, "status": sol.status})()
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Overstating)
+    A1 = np.array([[0.6, 0.3], [-0.3, 0.6]]) if Ts else np.array([[-1.0, 2.0], [-2.0, -1.0]])
+    A2 = A1 + (np.array([[0.1, 0.05], [0.0, -0.1]]) if Ts else np.array([[0.3, 0.5], [-0.5, 0.2]]))
+    m = _affine(A1, A2, Ts)
+    q, cert, _ = quadratic_stability(polynomial_A(m, [(0.0, 1.0)]), Ts is not None)
+    worst = min(
+        np.linalg.eigvalsh(0.5 * (F + F.T)).min()
+        for F in (cert.inequality(A) for A in frozen_A(m, np.linspace(0, 1, 201)))
+    )
+    assert cert.mu <= worst * (1 + 1e-9)
+    # Switching destabilises this pair (test above): overstated eps or not, no certificate.
+    S1 = np.array([[0.5, 0.95], [0.0, 0.5]])
+    q, cert, _ = quadratic_stability(
+        polynomial_A(_affine(S1, S1.T, 1.0), [(0.0, 1.0)]), True
+    )
+    assert q is not True

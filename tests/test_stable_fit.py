@@ -178,3 +178,67 @@ def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
     )
     assert no.refit is None and no.model is no.entry.model and no.final is no.entry
     assert no.covariance is not None and "refit=False" in no.reason
+
+
+def _ct_window():
+    """x' = a(p) x, a stable start (a = -1) and a model unstable only in a narrow window.
+
+    a(s) = 1e-8 - (s - s0)^2 (s = 2p - 1) is positive for |p - p0| < 5e-5 only, p0 midway
+    between two of the core's check points (a uniform grid of 2049 points on [0, 1]).
+    """
+    from lpvid.trust.enforce import CHECK_POINTS
+
+    p0 = (1000.5) / (CHECK_POINTS - 1)
+    s0 = 2 * p0 - 1
+    k = len(BASIS) + 1
+    B = np.zeros((k, 1, 1))
+    B[0] = 1.0
+    start = lpvid.LpvModel([[[-1.0]], [[0.0]], [[0.0]]], B, B.copy(), basis=BASIS)
+    bad = lpvid.LpvModel([[[1e-8 - s0**2]], [[2 * s0]], [[-1.0]]], B, B.copy(), basis=BASIS)
+    return start, bad, p0
+
+
+def test_stable_fits_recheck_the_continuum_between_the_check_points():
+    # A stand-in for the core's fit: it returns the window model whenever the check points
+    # it is given call it stable (as the core would), else it stays at the start.
+    from lpvid.trust.enforce import run_stable
+
+    start, bad, p0 = _ct_window()
+    assert lpvid.frozen.stability_margin(lpvid.frozen.frozen_poles(bad, [p0]), None)[0] < 0
+    seen = []
+
+    def fit(points):
+        seen.append(points.worst(1, 1, 1, bad.theta)[1])
+        theta = bad.theta if seen[-1] >= STABLE_TOL else start.theta
+        return {"theta": theta, "interrupted": False}
+
+    raw = run_stable(start, None, fit)
+    # The first fit passed its check points; the check of the continuum found the window
+    # and the second fit, with its place among the check points, refused the model.
+    assert seen[0] == 1.0 and seen[1] < 0 and len(seen) == 2
+    np.testing.assert_array_equal(raw["theta"], start.theta)
+    # A fit that keeps returning an unstable model is an error after MAX_ROUNDS, never a result.
+    seen.clear()
+    with pytest.raises(RuntimeError, match=r"^stable=True: after 3 rounds .*\(at p = 0\.4885"):
+        run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": False})
+    # An interrupted fit is returned as it is (the caller reports it).
+    out = run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": True})
+    assert out["interrupted"]
+
+
+@pytest.mark.parametrize("how", ["stable", "pinned"])
+def test_ctrl_c_stops_a_stable_or_pinned_sweep(peaked, how):
+    # Ctrl-C during the first fit (a callback that raises it once): the sweep returns that
+    # interrupted fit and starts no other.
+    calls = []
+
+    def once(row):
+        calls.append(row)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+
+    path = lpvid.l21_path(
+        _start(), peaked, [1e-2, 1e-3, 1e-4], fixed=FIXED, callback=once, warn=False, **{how: True}
+    )
+    assert len(path) == 1 and path[-1].interrupted and path[-1].stop == "keyboard_interrupt"
+    assert len(calls) == 1
