@@ -190,8 +190,16 @@ def test_noise_floor_rule_with_no_point_to_spare(small):
 def _row(order, degree, *, val=None, n_free=None, vnls=None, floor=None, ok=True):
     """A grid row as select fills it (``result`` only marks the pair as done)."""
     basis = lpvid.Polynomial(degree, domain=(0.0, 1.0))
-    return GridRow(order, basis, vnls, floor, val, None if val is None else 100, None, n_free,
-                   result=object() if ok else None)
+    return GridRow(
+        order,
+        basis,
+        vnls=vnls,
+        noise_floor=floor,
+        validation_vnls=val,
+        validation_floor=None if val is None else 100,
+        n_free=n_free,
+        result=object() if ok else None,
+    )
 
 
 def test_the_choice_among_pairs_within_tolerance():

@@ -309,7 +309,5 @@ def test_the_certificate_does_not_trust_the_solver(monkeypatch, Ts):
     assert cert.mu <= worst * (1 + 1e-9)
     # Switching destabilises this pair (test above): overstated eps or not, no certificate.
     S1 = np.array([[0.5, 0.95], [0.0, 0.5]])
-    q, cert, _ = quadratic_stability(
-        polynomial_A(_affine(S1, S1.T, 1.0), [(0.0, 1.0)]), True
-    )
+    q, cert, _ = quadratic_stability(polynomial_A(_affine(S1, S1.T, 1.0), [(0.0, 1.0)]), True)
     assert q is not True

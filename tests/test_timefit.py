@@ -91,9 +91,8 @@ def test_the_cost_weights_every_output_and_sample_by_its_own_sigma(Ts):
     model = two_parameter_model(rng, Ts)
     td = records(rng, [40, 25], dt=0.1)
     cost = TimeCost(td, x0="zero", skip=4)
-    want = [
-        ((model.simulate(u, p, dt=0.1) - y) / s)[4:] for u, p, y, s in zip(td.u, td.p, td.y, td.sigma)
-    ]
+    each = zip(td.u, td.p, td.y, td.sigma, strict=True)
+    want = [((model.simulate(u, p, dt=0.1) - y) / s)[4:] for u, p, y, s in each]
     got = lpvid.time_residual(model, cost)
     for g, w in zip(got, want, strict=True):
         np.testing.assert_allclose(g, w, rtol=1e-10, atol=1e-12 * np.abs(w).max())
