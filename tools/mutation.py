@@ -18,9 +18,9 @@ directory (mutmut names mutants after the path and strips only ``src/``, so
 ``python/lpvid`` becomes ``src/lpvid`` there), the built ``_core`` included;
 ``--stage DIR`` keeps it, and a second run there only re-checks what changed.
 Rust mutants are built and tested by cargo-mutants in its own copy of the
-tree (the ``target`` directory copied too, so that the dependencies are not
-built again) with the test profile (opt-level 1, the dependencies
-optimised), about 3 s of building per mutant. Runs are long on two cores: one module at
+tree with the test profile (opt-level 1, the dependencies optimised): the
+first build there compiles the dependencies (about 10 minutes on two
+cores), then each mutant takes a few seconds of building. Runs are long on two cores: one module at
 a time, under ``nice``.
 """
 
@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -79,7 +80,7 @@ def _tests_for(module: str) -> list[str]:
     raise SystemExit(f"module: no fast tests known for {module}; name the test files after it")
 
 
-def _stage(stage: Path, modules: list[str], tests: list[str], jobs: int) -> None:
+def _stage(stage: Path, modules: list[str], tests: list[str], pytest_args: list[str]) -> None:
     """The package as src/lpvid (with the built core), the tests and a mutmut configuration."""
     src = stage / "src" / "lpvid"
     if src.exists():
@@ -96,6 +97,7 @@ def _stage(stage: Path, modules: list[str], tests: list[str], jobs: int) -> None
     lines += [f"    src/lpvid/{m}{'*' if m.endswith('/') else ''}" for m in modules]
     lines += ["pytest_add_cli_args_test_selection ="] + [f"    {t}" for t in tests]
     lines += ["pytest_add_cli_args =", "    -p", "    no:cacheprovider"]
+    lines += [f"    {a}" for a in pytest_args]
     lines += ["process_isolation = forkserver", ""]
     (stage / "setup.cfg").write_text("\n".join(lines))
 
@@ -130,7 +132,7 @@ def run_python(args: argparse.Namespace) -> int:
         raise SystemExit(f"mutmut not found next to {py}: pip install mutmut==3.8.1")
     stage = Path(args.stage) if args.stage else Path(tempfile.mkdtemp(prefix="lpvid-mutmut."))
     stage.mkdir(parents=True, exist_ok=True)
-    _stage(stage, modules, tests, args.jobs)
+    _stage(stage, modules, tests, shlex.split(args.pytest_args))
     print(f"mutating {', '.join(modules)} against {' '.join(tests)} in {stage}", flush=True)
     cmd = ["nice", "-n", "19", str(mutmut), "run", "--max-children", str(args.jobs)]
     code = subprocess.run(cmd, cwd=stage).returncode
@@ -171,7 +173,7 @@ def run_rust(args: argparse.Namespace) -> int:
     )
     out = Path(args.stage) if args.stage else Path(tempfile.mkdtemp(prefix="lpvid-mutants."))
     cmd = ["nice", "-n", "19", "cargo", "mutants", "--no-shuffle", "-j", str(args.jobs)]
-    cmd += ["--copy-target=true", "--output", str(out)]
+    cmd += ["--output", str(out)]
     for f in files:
         cmd += ["--file", f]
     cmd += ["--", *extra]
@@ -200,15 +202,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--stage", help="staging directory (kept; default: a new temporary one)")
     p.add_argument("--python", help="the venv's python (default .venv/bin/python)")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument(
+        "--pytest-args",
+        default="",
+        help="more pytest arguments for every run, e.g. --pytest-args=\"-k 'not grid'\"",
+    )
     p.add_argument("--show", action="store_true", help="print the diff of every survivor")
     r = sub.add_parser("rust", help="cargo-mutants on Rust files of the core")
     r.add_argument("files", nargs="+", help="e.g. rust/lm.rs rust/socp/mod.rs")
     r.add_argument("--stage", help="output directory of cargo-mutants")
     r.add_argument("--jobs", type=int, default=1)
-    r.add_argument("cargo_args", nargs=argparse.REMAINDER, help="-- then cargo test arguments")
-    args = parser.parse_args(argv)
-    if args.lang == "rust" and args.cargo_args[:1] == ["--"]:
-        args.cargo_args = args.cargo_args[1:]
+    parser.epilog = "rust: arguments after -- go to cargo test (default: the file's fast tests)"
+    argv = sys.argv[1:] if argv is None else argv
+    cut = argv.index("--") if "--" in argv else len(argv)
+    args = parser.parse_args(argv[:cut])
+    args.cargo_args = argv[cut + 1 :]
+    if args.cargo_args and args.lang != "rust":
+        parser.error("arguments after -- are cargo test arguments (rust only)")
     return run_python(args) if args.lang == "py" else run_rust(args)
 
 
