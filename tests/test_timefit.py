@@ -3,6 +3,8 @@ cannot tell from another, divergence, and fits on FRFs and records together."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -345,6 +347,28 @@ def test_time_records_against_frf_data_and_defaults():
         r"discrete-time model runs at one sample time\)$",
     ):
         check_time_data(frf, slow)
+
+
+def test_records_leaving_the_range_warn_beyond_a_relative_1e9():
+    one, zero = [[1.0]], [[0.0]]
+
+    def leaves(lo, hi, top):
+        basis = lpvid.Polynomial(1, domain=(lo, hi))
+        m = lpvid.LpvModel([[[0.5]], [[0.1]]], [one, zero], [one, zero], None, basis, 1.0)
+        p = np.linspace(lo + 0.1 * (hi - lo), top, 20)
+        td = lpvid.TimeData(np.ones(20), p, np.zeros(20), dt=1.0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            lpvid.time_vnls(m, td, x0="zero")
+        return [str(w.message) for w in caught]
+
+    # The slack is 1e-9 times the width of the range (at least 1e-9).
+    assert leaves(1.0, 3.0, 3.0 + 1e-9) == [] and leaves(0.0, 0.5, 0.5 + 0.9e-9) == []
+    assert len(leaves(1.0, 3.0, 3.0 + 3e-9)) == 1 and len(leaves(0.0, 0.5, 0.5 + 1.5e-9)) == 1
+    assert leaves(0.0, 1.0, 1.5) == [
+        "time_data: record 0 leaves the model's scheduling range [0.0, 1.0] (it spans [0.1] to "
+        "[1.5]); the basis functions extrapolate there"
+    ]
 
 
 def test_l21_on_time_records_drops_a_spurious_group():
