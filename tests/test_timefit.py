@@ -174,6 +174,8 @@ def test_fit_time_l21_settings_range_and_callback():
     seen = []
     fit = lpvid.fit_time(start, td, gamma=1e-3, callback=seen.append, **kw)
     assert seen and len(seen) == len(fit.history)
+    np.testing.assert_array_equal(fit.model.C, start.C)  # fixed
+    assert not np.array_equal(fit.model.B, start.B)
     visited = (float(p.min()), float(p.max()))
     np.testing.assert_allclose(fit.group_norms.relative, fit.model.group_norms(visited).relative)
     wide = lpvid.fit_time(start, td, gamma=1e-3, p_range=(0.0, 2.0), **kw)
@@ -304,7 +306,11 @@ def test_records_that_do_not_fit_the_model_are_named():
         lpvid.fit_time(true, lpvid.TimeData(td.u[0], td.p[0], td.y[0][:, 0], dt=1.0))
     with pytest.warns(UserWarning, match=r"^time_data: record 0 leaves the model's scheduling"):
         lpvid.time_vnls(true, lpvid.TimeData(td.u[0], 1.5 * td.p[0], td.y[0], dt=1.0))
-    with pytest.raises(ValueError, match=r"^max_iter: limits the Levenberg-Marquardt fit"):
+    with pytest.raises(
+        ValueError,
+        match=r"^max_iter: limits the Levenberg-Marquardt fit \(gamma = 0\); with gamma > 0 set "
+        r"max_outer and max_inner \(L21Settings\)$",
+    ):
         lpvid.fit_time(true, td, gamma=1e-3, max_iter=5)
     with pytest.raises(ValueError, match=r"^settings: the l2,1 settings apply"):
         lpvid.fit_time(true, td, settings=lpvid.L21Settings())
