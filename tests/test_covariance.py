@@ -42,7 +42,7 @@ def _noisy(true, rng, rel=0.02):
 
 def test_band_radius():
     # P(|dG| <= k sigma) = 1 - exp(-k^2) for a circular complex Gaussian.
-    assert BAND == pytest.approx(np.sqrt(np.log(20.0)))
+    assert BAND == pytest.approx(np.sqrt(np.log(20.0))) and band_radius() == BAND
     rng = np.random.default_rng(0)
     e = (rng.standard_normal(200_000) + 1j * rng.standard_normal(200_000)) / np.sqrt(2)
     assert np.mean(np.abs(e) <= band_radius(0.9)) == pytest.approx(0.9, abs=0.005)
@@ -172,6 +172,22 @@ def _pole_gradients(model, p, lam, of=lambda z: z, h=1e-7):
         dn = dn[np.argmin(np.abs(dn[None, :] - lam[:, None]), axis=1)]
         grads.append((of(up) - of(dn)) / (2 * h))
     return np.stack(grads, axis=-1)
+
+
+def test_frf_std_in_chunks_and_at_one_frequency(rng, monkeypatch):
+    # The scheduling values go through the core in chunks sized by _CHUNK_ROWS: any
+    # chunking (one point at a time, 3 at a time with a shorter last chunk) gives the same.
+    true = _true_system()
+    cov = lpvid.covariance(true, _noisy(true, rng))
+    f, p = np.array([0.05, 0.2, 0.3]), np.linspace(0.0, 1.0, 7)
+    whole = cov.frf_std(f, p)
+    per_point = f.size * cov.lti_covariance(p).shape[-1]  # l = r = 1
+    for chunk in (1, 3):
+        monkeypatch.setattr(lpvid.trust.covariance, "_CHUNK_ROWS", -(-chunk * per_point // 8))
+        np.testing.assert_allclose(cov.frf_std(f, p), whole, rtol=1e-12)
+    np.testing.assert_allclose(cov.frf_std(0.2, p), whole[:, 1:2], rtol=1e-12)
+    with pytest.raises(ValueError, match=r"^freqs_hz: expected a 0 or 1-dimensional array"):
+        cov.frf_std(f[None, :], p)
 
 
 def test_pole_std_against_finite_differences(rng):
