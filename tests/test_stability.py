@@ -217,6 +217,47 @@ def test_two_parameters():
     assert rep.quadratic is None and "one scheduling parameter" in rep.note
 
 
+def test_two_parameters_refine_between_the_grid_points(monkeypatch):
+    # Continuous time, a pair sigma(s) +- 1j with sigma = -0.1 - 300 |s - s0|^2: the least
+    # damped place s0 = (0.123, -0.377) lies between the points of the grid (spacing 0.047);
+    # the margin there is 0.1 / sqrt(1.01), 0.3 above it at the nearest grid point.
+    from lpvid.trust import stability as module
+
+    c, (u, v) = 300.0, (0.123, -0.377)
+    eye, rot = np.eye(2), np.array([[0.0, 1.0], [-1.0, 0.0]])
+    # Basis 1, s1, s2, s1^2, s1 s2, s2^2.
+    A = [(-0.1 - c * (u * u + v * v)) * eye + rot, 2 * c * u * eye, 2 * c * v * eye]
+    A += [-c * eye, 0 * eye, -c * eye]
+    B = np.zeros((6, 2, 1))
+    B[0, 0] = 1.0
+    basis = lpvid.Polynomial(2, domain=[(0.0, 1.0), (0.0, 1.0)])
+    m = lpvid.LpvModel(np.array(A), B, np.transpose(B, (0, 2, 1)), basis=basis)
+    counted = []
+    real = module.margins
+
+    def counting(model, p):
+        out = real(model, p)
+        counted.append(out.size)
+        return out
+
+    monkeypatch.setattr(module, "margins", counting)
+    rep = lpvid.stability(m, quadratic=False)
+    assert rep.method == "grid" and rep.stable
+    assert rep.margin == pytest.approx(0.1 / np.sqrt(1.01), rel=1e-9)
+    np.testing.assert_allclose(rep.worst_p, [(u + 1) / 2, (v + 1) / 2], atol=1e-6)
+    assert rep.n_checked == sum(counted) > counted[0] == 44**2
+
+
+def test_box_grid():
+    from lpvid.trust.ranges import box_grid
+
+    pts = box_grid([(0.0, 1.0), (-2.0, 2.0)], 2001)  # floor(sqrt(2001)) = 44 per axis
+    assert pts.shape == (44 * 44, 2)
+    np.testing.assert_allclose(pts[:2], [[0.0, -2.0], [0.0, -2.0 + 4.0 / 43]])
+    np.testing.assert_allclose(pts[-1], [1.0, 2.0])
+    assert box_grid([(0.0, 1.0)] * 3, 5).shape == (8, 3)  # never fewer than 2 per axis
+
+
 def test_quadratic_false_when_switching_destabilises():
     # Frozen models stable on the whole range, but the product A(0) A(1) has
     # spectral radius > 1: no common Lyapunov matrix exists (switching diverges).

@@ -242,3 +242,23 @@ def test_ctrl_c_stops_a_stable_or_pinned_sweep(peaked, how):
     )
     assert len(path) == 1 and path[-1].interrupted and path[-1].stop == "keyboard_interrupt"
     assert len(calls) == 1
+
+
+def test_stable_fit_replaces_only_what_is_unstable_on_its_range():
+    # a(p) = 0.99 + 0.02 p: margin 5e-3 on [0, 0.25], 0 at p = 0.5, unstable beyond.
+    from lpvid.trust.steps import stable_fit
+
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))  # s = 2 p - 1
+    one, zero = [[1.0]], [[0.0]]
+    true = lpvid.LpvModel([[[1.0]], [[0.01]]], [[[0.1]], zero], [one, zero], None, basis, 1.0)
+    p = np.array([0.0, 0.25, 0.5])
+    f = np.linspace(0.02, 0.5, 40)
+    data = lpvid.FrfData(p, f, true.frf(f, p), sigma=0.01, Ts=1.0)
+    fit = lpvid.fit_nls(true, data, {"D": True})
+    assert fit.model.D[0, 0, 0] == 0.0
+    assert stable_fit(fit, data, {"D": True}, 1e-6, (0.0, 0.25)) is fit
+    out = stable_fit(fit, data, {"D": True}, 1e-6, (0.0, 0.5))
+    rep = lpvid.stability(out.model, (0.0, 0.5), quadratic=False)
+    assert out is not fit and rep.stable and rep.margin >= STABLE_TOL
+    assert out.model.D[0, 0, 0] == 0.0  # fixed stays fixed
+    assert not lpvid.stability(out.model, quadratic=False).stable  # beyond the range: free
