@@ -262,3 +262,26 @@ def test_stable_fit_replaces_only_what_is_unstable_on_its_range():
     assert out is not fit and rep.stable and rep.margin >= STABLE_TOL
     assert out.model.D[0, 0, 0] == 0.0  # fixed stays fixed
     assert not lpvid.stability(out.model, quadratic=False).stable  # beyond the range: free
+
+
+def test_stabilised_on_its_range_only_and_to_the_margin_asked():
+    # Discrete time, a(p) = 0.9999 (margin 1e-4): scaled to margin 1e-3 exactly.
+    close = stabilised(_start(0.9999))
+    assert lpvid.stability(close, quadratic=False).margin == pytest.approx(1e-3, rel=1e-9)
+    # a(s) = 0.9 + 0.2 s: stable with margin 0.1 on p in [0, 0.5], unstable beyond:
+    # unchanged on [0, 0.5], scaled on the whole range.
+    base = _start(0.9)
+    A = base.A.copy()
+    A[1, 0, 0] = 0.2
+    tilted = lpvid.LpvModel(A, base.B, base.C, basis=BASIS, Ts=1.0)
+    assert stabilised(tilted, (0.0, 0.5)) is tilted
+    assert lpvid.stability(stabilised(tilted), quadratic=False).margin == pytest.approx(1e-3)
+    # Continuous time over two parameters: A(p) = -0.5 + 1.5 s1 + 0.2 s2 (unstable where
+    # s1 > 1/3): shifted until stable on the box.
+    basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)])
+    B = np.zeros((3, 1, 1))
+    B[0] = 1.0
+    ct = lpvid.LpvModel([[[-0.5]], [[1.5]], [[0.2]]], B, B.copy(), basis=basis)
+    assert not lpvid.stability(ct, quadratic=False).stable
+    rep = lpvid.stability(stabilised(ct), quadratic=False)
+    assert rep.stable and rep.margin > 0
