@@ -16,7 +16,6 @@ import lpvid
 import lpvid.testing
 from lpvid.cli import main
 from lpvid.initial.subspace import singular_values
-from lpvid.selected import GridRow, choose_pair
 from lpvid.selection import held_out_points
 
 # A known system: two modes (order 4) whose frequencies are quadratic in p.
@@ -185,66 +184,6 @@ def test_noise_floor_rule_with_no_point_to_spare(small):
     m = sel.row.noise_floor
     assert sel.row.vnls <= m + 2 * np.sqrt(m)
     assert all(r.vnls > m + 2 * np.sqrt(m) for r in sel.grid if r.order < 2)
-
-
-def _row(order, degree, *, val=None, n_free=None, vnls=None, floor=None, ok=True):
-    """A grid row as select fills it (``result`` only marks the pair as done)."""
-    basis = lpvid.Polynomial(degree, domain=(0.0, 1.0))
-    return GridRow(
-        order,
-        basis,
-        vnls=vnls,
-        noise_floor=floor,
-        validation_vnls=val,
-        validation_floor=None if val is None else 100,
-        n_free=n_free,
-        result=object() if ok else None,
-    )
-
-
-def test_the_choice_among_pairs_within_tolerance():
-    # The best validation V_NLS is 100: within 10 % are 100, 104, 105 and 109.
-    rows = [
-        _row(2, 1, val=100.0, n_free=10),
-        _row(3, 1, val=109.0, n_free=8),
-        _row(2, 2, val=111.0, n_free=5),  # simplest, but 11 % off
-        _row(4, 2, val=104.0, n_free=8),  # as simple as the next, one basis function more
-        _row(5, 1, val=105.0, n_free=8),  # as simple as (3, poly:1) and lower: chosen
-        _row(6, 1, val=50.0, n_free=2, ok=False),  # failed: never chosen
-        _row(6, 2, n_free=2),  # no validation V_NLS (cancelled rotation)
-    ]
-    k, reason = choose_pair(rows, "validation", 0.1)
-    assert k == 4 and "4 of 5 pairs are within" in reason
-    assert choose_pair(rows, "held-out", 0.0)[0] == 0
-    assert choose_pair(rows, "validation", 0.11)[0] == 2  # 111 <= 1.11 * 100
-    with pytest.raises(ValueError, match="no pair of the grid has a held-out V_NLS"):
-        choose_pair(rows[5:6], "held-out", 0.1)
-
-
-def test_the_noise_floor_choice_and_its_fallback():
-    # M = 100: the floor is reached at V_NLS <= M + 2 sqrt(M) = 120 (exactly).
-    rows = [
-        _row(2, 2, vnls=150.0, floor=100, n_free=4),
-        _row(3, 2, vnls=100.0, floor=100, n_free=9),
-        _row(3, 1, vnls=119.0, floor=100, n_free=6),
-        _row(4, 1, vnls=90.0, floor=100, n_free=8),
-    ]
-    assert choose_pair(rows, "noise floor", 0.1)[0] == 2  # smallest order, fewest functions
-    rows.append(_row(2, 1, vnls=120.0, floor=100, n_free=3))
-    assert choose_pair(rows, "noise floor", 0.1)[0] == 4  # on the bound counts
-    # None reaches its floor: the lowest V_NLS / M, not the lowest V_NLS.
-    above = [
-        _row(2, 1, vnls=300.0, floor=100),
-        _row(3, 1, vnls=500.0, floor=200),
-        _row(4, 1, vnls=280.0, floor=90),
-        _row(5, 1, vnls=1.0, floor=1, ok=False),
-    ]
-    k, reason = choose_pair(above, "noise floor", 0.1)
-    assert k == 1 and "no pair reaches the noise floor" in reason
-    with pytest.raises(ValueError, match="no pair of the grid has a model"):
-        choose_pair(above[3:], "noise floor", 0.1)
-    with pytest.raises(ValueError, match="rule: expected one of"):
-        choose_pair(rows, "aic", 0.1)
 
 
 def test_fixed_for_every_pair_and_per_pair(small):

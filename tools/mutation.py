@@ -48,8 +48,8 @@ PY_TESTS = {
     "trust/stability.py": ["tests/test_stability.py"],
     "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
-    "selection.py": ["tests/test_select.py"],
-    "selected.py": ["tests/test_select.py"],
+    "selection.py": ["tests/test_select_rules.py", "tests/test_select.py"],
+    "selected.py": ["tests/test_select_rules.py", "tests/test_select.py"],
     "timefit.py": ["tests/test_timefit.py"],
     "timecost.py": ["tests/test_timefit.py", "tests/test_timedata.py"],
     "readers/": [
