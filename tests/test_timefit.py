@@ -159,8 +159,9 @@ def test_fit_time_options_reach_the_cost():
 
 
 def test_fit_time_l21_settings_range_and_callback():
-    # A basis without a domain: the group norms are taken over the range the records
-    # visit, or over the p_range given; settings and callbacks reach the fit.
+    # gamma 3e-3, not the core's default 1e-3. A basis without a domain: the group norms
+    # are taken over the range the records visit, or over the p_range given; settings and
+    # callbacks reach the fit.
     rng = np.random.default_rng(8)
     T = 300
     basis = lpvid.Polynomial(1)
@@ -172,25 +173,33 @@ def test_fit_time_l21_settings_range_and_callback():
     start = true.with_theta(true.theta * 0.97)
     kw = dict(x0="zero", fixed={"C": True, "D": True})
     seen = []
-    fit = lpvid.fit_time(start, td, gamma=1e-3, callback=seen.append, **kw)
+    fit = lpvid.fit_time(start, td, gamma=3e-3, callback=seen.append, **kw)
     assert seen and len(seen) == len(fit.history)
     np.testing.assert_array_equal(fit.model.C, start.C)  # fixed
     assert not np.array_equal(fit.model.B, start.B)
+    assert fit.objective > fit.vnls / fit.noise_floor * (1 + 1e-4)  # the penalty counts
     visited = (float(p.min()), float(p.max()))
     np.testing.assert_allclose(fit.group_norms.relative, fit.model.group_norms(visited).relative)
-    wide = lpvid.fit_time(start, td, gamma=1e-3, p_range=(0.0, 2.0), **kw)
+    wide = lpvid.fit_time(start, td, gamma=3e-3, p_range=(0.0, 2.0), **kw)
     want = wide.model.group_norms((0.0, 2.0)).relative  # ||psi_1||_inf = 2, not 0.7
     np.testing.assert_allclose(wide.group_norms.relative, want)
     assert not np.allclose(want, wide.model.group_norms(visited).relative)
-    limit = r"^fit_time \(gamma = 0\.001\) stopped at its iteration limit"
+    # A model with a range of its own: the group norms over that range.
+    ranged = lpvid.LpvModel(
+        start.A, start.B, start.C, None, lpvid.Polynomial(1, domain=(0, 2)), 1.0
+    )
+    own = lpvid.fit_time(ranged, td, gamma=3e-3, **kw)
+    np.testing.assert_allclose(own.group_norms.relative, own.model.group_norms().relative)
+    assert not np.allclose(own.group_norms.relative, own.model.group_norms(visited).relative)
+    limit = r"^fit_time \(gamma = 0\.003\) stopped at its iteration limit"
     with pytest.warns(lpvid.ConvergenceWarning, match=limit):
-        short = lpvid.fit_time(start, td, gamma=1e-3, settings=lpvid.L21Settings(max_outer=1), **kw)
+        short = lpvid.fit_time(start, td, gamma=3e-3, settings=lpvid.L21Settings(max_outer=1), **kw)
     assert short.outer_iterations == 1 < fit.outer_iterations
     with pytest.warns(lpvid.ConvergenceWarning, match=limit):
-        assert lpvid.fit_time(start, td, gamma=1e-3, max_outer=1, **kw).outer_iterations == 1
+        assert lpvid.fit_time(start, td, gamma=3e-3, max_outer=1, **kw).outer_iterations == 1
     nls = lpvid.fit_time(start, td, callback=lambda row: False, **kw)
     assert nls.interrupted and nls.n_iter == 1
-    l21 = lpvid.fit_time(start, td, gamma=1e-3, callback=lambda row: False, **kw)
+    l21 = lpvid.fit_time(start, td, gamma=3e-3, callback=lambda row: False, **kw)
     assert l21.interrupted and len(l21.history) == 1
 
 
@@ -358,10 +367,10 @@ def test_time_records_against_frf_data_and_defaults():
 def test_records_leaving_the_range_warn_beyond_a_relative_1e9():
     one, zero = [[1.0]], [[0.0]]
 
-    def leaves(lo, hi, top):
+    def leaves(lo, hi, top, bottom=None):
         basis = lpvid.Polynomial(1, domain=(lo, hi))
         m = lpvid.LpvModel([[[0.5]], [[0.1]]], [one, zero], [one, zero], None, basis, 1.0)
-        p = np.linspace(lo + 0.1 * (hi - lo), top, 20)
+        p = np.linspace(lo + 0.1 * (hi - lo) if bottom is None else bottom, top, 20)
         td = lpvid.TimeData(np.ones(20), p, np.zeros(20), dt=1.0)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -371,6 +380,7 @@ def test_records_leaving_the_range_warn_beyond_a_relative_1e9():
     # The slack is 1e-9 times the width of the range (at least 1e-9).
     assert leaves(1.0, 3.0, 3.0 + 1e-9) == [] and leaves(0.0, 0.5, 0.5 + 0.9e-9) == []
     assert len(leaves(1.0, 3.0, 3.0 + 3e-9)) == 1 and len(leaves(0.0, 0.5, 0.5 + 1.5e-9)) == 1
+    assert len(leaves(2.0, 3.0, 3.0, bottom=2.0 - 3e-9)) == 1  # below the range too
     assert leaves(0.0, 1.0, 1.5) == [
         "time_data: record 0 leaves the model's scheduling range [0.0, 1.0] (it spans [0.1] to "
         "[1.5]); the basis functions extrapolate there"
