@@ -178,6 +178,8 @@ def test_fit_time_l21_settings_range_and_callback():
     np.testing.assert_array_equal(fit.model.C, start.C)  # fixed
     assert not np.array_equal(fit.model.B, start.B)
     assert fit.objective > fit.vnls / fit.noise_floor * (1 + 1e-4)  # the penalty counts
+    less = lpvid.fit_time(start, td, gamma=1e-3, **kw)  # less shrinkage: another fit
+    assert not np.allclose(less.model.theta, fit.model.theta, rtol=1e-6, atol=0)
     visited = (float(p.min()), float(p.max()))
     np.testing.assert_allclose(fit.group_norms.relative, fit.model.group_norms(visited).relative)
     wide = lpvid.fit_time(start, td, gamma=3e-3, p_range=(0.0, 2.0), **kw)
