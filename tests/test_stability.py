@@ -159,6 +159,42 @@ def test_report_fields_and_text():
     assert rep.n_checked >= 200 and rep.seconds > 0
 
 
+def test_summaries_in_words():
+    # Discrete time, one parameter, crossings: a(s) = 0.5 + 0.45 s, margin 0.05 at p = 1.
+    rep = lpvid.stability(_scalar([0.5, 0.45]), quadratic=False)
+    assert rep.summary().splitlines() == [
+        "frozen models stable over p in [0, 1]: smallest margin 0.05 (1 - spectral radius) at "
+        f"p = 1 (exact crossing test, {rep.n_checked} frozen models)",
+        "quadratic stability: not asked (quadratic=False)",
+    ]
+    # Continuous time, unstable, two parameters on the grid.
+    basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 2.0)])
+    one = np.ones((3, 1, 1)) * [[[1.0]], [[0.0]], [[0.0]]]
+    m = lpvid.LpvModel([[[-1.0]], [[1.5]], [[0.0]]], one, one, basis=basis)
+    rep = lpvid.stability(m, quadratic=False)
+    first = rep.summary().splitlines()[0]
+    assert first == (
+        "frozen models NOT stable over p in [0, 1] x [0, 2]: smallest margin -1 (smallest "
+        f"-Re(pole)/|pole|) at p = {lpvid.trust.stability.format_p(rep.worst_p)} (grid with "
+        f"refinement, {rep.n_checked} frozen models)"
+    )
+    assert lpvid.trust.stability.format_p([0.25, 2.0]) == "(0.25, 2)"
+    assert lpvid.trust.stability.format_p(np.float64(0.125)) == "0.125"
+    # One frozen model: an LTI model.
+    lti = lpvid.LpvModel([[[0.5]]], [[[1.0]]], [[[1.0]]], Ts=1.0)
+    assert lpvid.stability(lti, quadratic=False).summary().splitlines()[0] == (
+        "the model does not depend on p and is stable: margin 0.5 (1 - spectral radius)"
+    )
+    unstable = lpvid.LpvModel([[[1.5]]], [[[1.0]]], [[[1.0]]], Ts=1.0)
+    assert "does not depend on p and is NOT stable: margin -0.5" in str(lpvid.stability(unstable))
+
+
+def test_an_lmi_too_large_is_not_decided():
+    q, cert, note = quadratic_stability(np.zeros((2, 201, 201)), True)  # blocks of 402
+    assert q is None and cert is None
+    assert note == "not decided: the LMI is too large (blocks over 400)"
+
+
 def test_bad_ranges_are_named():
     m = _scalar([0.5, 0.45])
     with pytest.raises(
@@ -298,6 +334,8 @@ def test_quadratic_certificate_is_checked_independently(Ts):
     assert rep.quadratic is True
     cert = rep.certificate
     assert cert.mu > 0 and np.linalg.eigvalsh(cert.P).min() > 0
+    # The sum-of-squares identity, recomputed, holds to the solver's accuracy.
+    assert cert.residual <= 1e-6 * np.linalg.norm(cert.P, 2) and cert.mu <= cert.eps
     for A in frozen_A(m, np.linspace(0, 1, 401)):
         F = cert.inequality(A)
         assert np.linalg.eigvalsh(0.5 * (F + F.T)).min() >= cert.mu * (1 - 1e-9)
@@ -315,7 +353,8 @@ def test_unstable_frozen_model_is_not_quadratically_stable():
 def test_without_clarabel_quadratic_is_none(monkeypatch):
     monkeypatch.setitem(sys.modules, "clarabel", None)
     rep = lpvid.stability(_scalar([0.5, 0.45]))
-    assert rep.stable and rep.quadratic is None and "lpvid[lmi]" in rep.note
+    assert rep.stable and rep.quadratic is None
+    assert rep.note == 'not decided: the LMI needs the clarabel package (pip install "lpvid[lmi]")'
     q, cert, note = quadratic_stability(np.array([[[0.5]]]), True)
     assert q is None and cert is None
 
