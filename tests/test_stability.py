@@ -345,6 +345,31 @@ def test_quadratic_certificate_is_checked_independently(Ts):
             assert np.linalg.eigvalsh(A.T @ cert.P + cert.P @ A).max() < 0
 
 
+@pytest.mark.parametrize(
+    "scale, discrete, best",
+    [
+        ([0.5, 0.45], True, 0.05),  # degree 1: vertices
+        ([0.5, 0.2, 0.25], True, 0.05),  # degree 2, max |s(t)| = 0.95 at t = 1
+        ([0.5, 0.2, 0.1, 0.15], True, 0.05),  # degree 3
+        ([-1.0, -0.5, -0.3], False, 2 * (1 - 0.5**2 / (4 * 0.3))),  # 2 min a(t)
+    ],
+)
+def test_the_lmi_reaches_the_known_optimum(scale, discrete, best):
+    # A(t) = s(t) R (discrete, R a rotation) or s(t) I + 3 J (continuous, J skew): with
+    # I <= P <= kappa I the best eps is kappa (1 - max |s|), or 2 kappa min(-s), at P = kappa I.
+    # The representation is exact: the solver must reach it, not only a feasible point.
+    from lpvid.trust.lyapunov import KAPPA
+
+    R = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
+    J = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    coef = np.array([c * (R if discrete else np.eye(2)) for c in scale])
+    if not discrete:
+        coef[0] += 3 * J
+    q, cert, _ = quadratic_stability(coef, discrete)
+    assert q is True and cert.eps == pytest.approx(KAPPA * best, rel=1e-6)
+    np.testing.assert_allclose(cert.P, KAPPA * np.eye(2), rtol=0, atol=1e-5 * KAPPA)
+
+
 def test_unstable_frozen_model_is_not_quadratically_stable():
     rep = lpvid.stability(_scalar([0.5, 0.6]))
     assert not rep.stable and rep.quadratic is False and rep.certificate is None
