@@ -189,6 +189,35 @@ def test_summaries_in_words():
     assert "does not depend on p and is NOT stable: margin -0.5" in str(lpvid.stability(unstable))
 
 
+def test_an_indefinite_gram_matrix_costs_the_certificate(monkeypatch):
+    # An LTI model (degree 0: F - eps I = Q0). A solver that returns eps + 0.5 and
+    # Q0 - 0.5 I keeps the identity exact, but Q0 is then indefinite: the certified mu must
+    # pay for it and stay a lower bound of F, which P alone decides.
+    clarabel = pytest.importorskip("clarabel")
+    from lpvid.trust import lyapunov
+
+    honest = clarabel.DefaultSolver
+    A = np.array([[[0.6, 0.3], [-0.3, 0.6]]])
+    n_p, q = 3, 4  # svec(P) of a 2 x 2 matrix, the blocks of the discrete form are 4 x 4
+
+    class Shifting:
+        def __init__(self, *args):
+            self.inner = honest(*args)
+
+        def solve(self):
+            sol = self.inner.solve()
+            x = np.array(sol.x, dtype=float)
+            x[-1] += 0.5
+            x[n_p : n_p + q * (q + 1) // 2] -= 0.5 * lyapunov._svec(np.eye(q))
+            return type("Solution", (), {"x": x, "status": sol.status})()
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Shifting)
+    _, cert, _ = quadratic_stability(A, True)
+    truth = np.linalg.eigvalsh(cert.inequality(A[0])).min()
+    assert cert.residual < 1e-6 * np.linalg.norm(cert.P, 2)  # the identity still holds
+    assert cert.mu <= truth * (1 + 1e-9)
+
+
 def test_an_lmi_too_large_is_not_decided():
     q, cert, note = quadratic_stability(np.zeros((2, 201, 201)), True)  # blocks of 402
     assert q is None and cert is None
