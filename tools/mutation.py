@@ -16,7 +16,8 @@ Each run prints the killed / total per module and the survivors (``--show``:
 with their diffs). Python modules are copied with their tests to a staging
 directory (mutmut names mutants after the path and strips only ``src/``, so
 ``python/lpvid`` becomes ``src/lpvid`` there), the built ``_core`` included;
-``--stage DIR`` keeps it, and a second run there only re-checks what changed.
+``--stage DIR`` keeps it, and ``--stage DIR --recheck`` runs only its
+survivors again against the current tests (after writing tests for them).
 Rust mutants are built and tested by cargo-mutants in its own copy of the
 tree with the test profile (opt-level 1, the dependencies optimised): the
 first build there compiles the dependencies (about 10 minutes on two
@@ -132,9 +133,20 @@ def run_python(args: argparse.Namespace) -> int:
         raise SystemExit(f"mutmut not found next to {py}: pip install mutmut==3.8.1")
     stage = Path(args.stage) if args.stage else Path(tempfile.mkdtemp(prefix="lpvid-mutmut."))
     stage.mkdir(parents=True, exist_ok=True)
+    again: list[str] = []
+    if args.recheck:
+        before = py_results(stage)
+        again = [k for by in before.values() for k in by.get("survived", [])]
+        if not before:
+            raise SystemExit(f"--recheck: no results in {stage} to re-check")
     _stage(stage, modules, tests, shlex.split(args.pytest_args))
     print(f"mutating {', '.join(modules)} against {' '.join(tests)} in {stage}", flush=True)
     cmd = ["nice", "-n", "19", str(mutmut), "run", "--max-children", str(args.jobs)]
+    if args.recheck:
+        print(f"re-checking the {len(again)} survivors with the current tests", flush=True)
+        if not again:
+            return 0
+        cmd += again
     code = subprocess.run(cmd, cwd=stage).returncode
     results = py_results(stage)
     print()
@@ -208,6 +220,11 @@ def main(argv: list[str] | None = None) -> int:
         help="more pytest arguments for every run, e.g. --pytest-args=\"-k 'not grid'\"",
     )
     p.add_argument("--show", action="store_true", help="print the diff of every survivor")
+    p.add_argument(
+        "--recheck",
+        action="store_true",
+        help="with --stage: run only the survivors again, against the current tests",
+    )
     r = sub.add_parser("rust", help="cargo-mutants on Rust files of the core")
     r.add_argument("files", nargs="+", help="e.g. rust/lm.rs rust/socp/mod.rs")
     r.add_argument("--stage", help="output directory of cargo-mutants")
