@@ -285,3 +285,45 @@ def test_stabilised_on_its_range_only_and_to_the_margin_asked():
     assert not lpvid.stability(ct, quadratic=False).stable
     rep = lpvid.stability(stabilised(ct), quadratic=False)
     assert rep.stable and rep.margin > 0
+
+
+def test_judged_refit_without_validation_and_the_report_lines():
+    from types import SimpleNamespace
+
+    from lpvid.trust.refit import judged_refit
+    from lpvid.trust.steps import refit_line, trust_lines
+
+    # B(1) = 1e-7 B(0) (relative 1e-7: dropped at the default 1e-6), A(1) = 0.5 A(0) on
+    # [0, 1] but 2 over p_range (0, 4) of a domain-free basis: kept.
+    one, zero = [[1.0]], [[0.0]]
+    m = lpvid.LpvModel(
+        [[[0.2]], [[0.05]]], [one, [[1e-7]]], [one, zero], None, lpvid.Polynomial(1), 1.0
+    )
+    judged = judged_refit(m, None, None, {"D": True}, p_range=(0.0, 1.0))
+    assert judged.model is m and judged.fit is None and judged.kept is False
+    assert judged.note == (
+        "not refitted: without validation data nothing tells whether a refit on the support "
+        "interpolates better (lpvid.refit runs it)"
+    )
+    want = lpvid.fixed_mask(m, {"D": True, "B": [1], "C": [1]})
+    np.testing.assert_array_equal(judged.held, want)
+    assert judged_refit(m, None, None, threshold=0.3, p_range=(0.0, 1.0)).held[1]  # A(1) 0.25
+    assert not judged_refit(m, None, None, threshold=0.3, p_range=(0.0, 4.0)).held[1]  # 1.0
+    entry = SimpleNamespace(vnls=120.0, validation_vnls=80.0)
+    refitted = SimpleNamespace(vnls=110.0, validation_vnls=70.0)
+    head = "refit on the support (dropped groups fixed at zero): V_NLS 120 -> 110"
+    assert refit_line(entry, refitted, True) == head + "; validation V_NLS 80 -> 70; kept"
+    alone = SimpleNamespace(vnls=110.0, validation_vnls=None)
+    assert refit_line(entry, alone, False) == head + "; not kept, the path's model returned"
+    assert refit_line(SimpleNamespace(vnls=120.0, validation_vnls=None), refitted, True) == (
+        head + "; kept"
+    )
+    cov = SimpleNamespace(rank=7, n_unidentified=2)
+    lines = trust_lines(entry, refitted, False, cov, None)
+    assert lines[0].endswith("; not kept, the path's model returned")
+    assert lines[1] == (
+        "covariance: rank 7; 2 parameter direction(s) leave the FRF at every identification "
+        "point unchanged (the data cannot tell them apart) and are left out: between the "
+        "points the band may be too narrow"
+    )
+    assert trust_lines(entry, None, False, SimpleNamespace(rank=7, n_unidentified=0), None) == []
