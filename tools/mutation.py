@@ -95,7 +95,13 @@ def _stage(stage: Path, modules: list[str], tests: list[str], pytest_args: list[
     shutil.copytree(ROOT / "tests", stage / "tests", ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("pyproject.toml", "README.md"):  # tests read the README's examples
         shutil.copy(ROOT / name, stage / name)
-    lines = ["[mutmut]", "source_paths = src/lpvid", "also_copy =", "    README.md", "only_mutate ="]
+    lines = [
+        "[mutmut]",
+        "source_paths = src/lpvid",
+        "also_copy =",
+        "    README.md",
+        "only_mutate =",
+    ]
     lines += [f"    src/lpvid/{m}{'*' if m.endswith('/') else ''}" for m in modules]
     lines += ["pytest_add_cli_args_test_selection ="] + [f"    {t}" for t in tests]
     lines += ["pytest_add_cli_args =", "    -p", "    no:cacheprovider"]
