@@ -150,6 +150,29 @@ def test_continuous_time_pair_crossing_the_axis():
     assert ok.stable and ok.p_range == (-1.0, 0.1)
 
 
+def test_crossings_when_every_shift_is_singular():
+    # x' = a(s) x with a(s) = s^3 - s / 4: a pole at 0 for s = 0 and s = -+1/2, the three
+    # shifts of the companion form, so the generalised eigenvalue problem is solved. The
+    # crossings are exactly s = -1/2, 0, 1/2 (p = 1/4, 1/2, 3/4); unstable where a > 0.
+    m = _scalar([0.0, -0.25, 0.0, 1.0], Ts=None)
+    rep = lpvid.stability(m, quadratic=False)
+    assert rep.method == "crossings" and not rep.stable and rep.margin == -1.0
+    np.testing.assert_allclose(np.sort(rep.crossings), [0.25, 0.5, 0.75], atol=1e-9)
+    # A(s) that does not depend on s: no crossing at all; a pencil too large: the grid.
+    flat = lpvid.stability(_scalar([0.5, 0.0]), quadratic=False)
+    assert flat.method == "crossings" and flat.crossings.size == 0 and flat.stable
+    n = 25  # 325 symmetric pairs, discrete degree 2: a pencil of 1300 rows > MAX_PENCIL
+    A = np.zeros((3, n, n))
+    A[0], A[2] = 0.5 * np.eye(n), 0.2 * np.eye(n)
+    B = np.zeros((3, n, 1))
+    B[0, 0] = 1.0
+    big = lpvid.LpvModel(
+        A, B, np.transpose(B, (0, 2, 1)), basis=lpvid.Polynomial(2, domain=(0, 1)), Ts=1.0
+    )
+    rep = lpvid.stability(big, quadratic=False)
+    assert rep.method == "grid" and rep.stable and rep.margin == pytest.approx(0.3)
+
+
 def test_report_fields_and_text():
     m = _scalar([0.5, 0.45])
     rep = lpvid.stability(m)
