@@ -288,6 +288,41 @@ def test_other_bases_use_the_grid_and_leave_quadratic_open():
     assert rep.quadratic is False
 
 
+@pytest.mark.parametrize("end", [0.0, 3.0])
+def test_the_grid_refines_a_window_next_to_an_end(monkeypatch, end):
+    # As above, the window 3e-4 from an end of [0, 3], inside the last interval of the grid:
+    # the sampled margin is smallest at the end itself, and the search between the end
+    # and its neighbour finds the window. n_checked counts every frozen model evaluated.
+    from lpvid.trust import stability as module
+
+    p0 = end + (3e-4 if end == 0.0 else -3e-4)
+
+    def bump(p):
+        return np.exp(-(((p - p0) / 0.05) ** 2))
+
+    m = lpvid.LpvModel(
+        [[[0.5]], [[0.5 + 1e-6]]],
+        [[[1.0]], [[0.0]]],
+        [[[1.0]], [[0.0]]],
+        basis=lpvid.CustomBasis([bump]),
+        Ts=1.0,
+        p_range=(0.0, 3.0),
+    )
+    counted = []
+    real = module.margins
+
+    def counting(model, p):
+        out = real(model, p)
+        counted.append(out.size)
+        return out
+
+    monkeypatch.setattr(module, "margins", counting)
+    rep = lpvid.stability(m, quadratic=False)
+    assert not rep.stable and rep.margin == pytest.approx(-1e-6, rel=1e-4)
+    assert rep.worst_p == pytest.approx(p0, abs=1e-6)
+    assert rep.n_checked == sum(counted) > counted[0] == 2001
+
+
 def test_two_parameters():
     basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)])
     # a = 0.5 + 0.2 s1 + 0.25 s2: largest at the corner (1, 1) with 0.95.
