@@ -327,3 +327,37 @@ def test_judged_refit_without_validation_and_the_report_lines():
         "points the band may be too narrow"
     )
     assert trust_lines(entry, None, False, SimpleNamespace(rank=7, n_unidentified=0), None) == []
+
+
+def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
+    # Against an independent run of the same steps: refit on the support (ftol FTOL), the
+    # validation V_NLS before and after, kept only beyond REFIT_MARGIN.
+    from lpvid.settings import FTOL
+    from lpvid.trust.refit import REFIT_MARGIN, judged_refit
+
+    model = lpvid.fit_l21(_start(), peaked, 1e-3, fixed=FIXED).model
+    val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
+    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0), ftol=FTOL)
+    before, after = lpvid.vnls(model, val), lpvid.vnls(fit.model, val)
+    change = f"validation V_NLS {before:.6g} -> {after:.6g}"
+    judged = judged_refit(model, peaked, val, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
+    np.testing.assert_array_equal(judged.fit.model.theta, fit.model.theta)
+    kept = fit.converged and after < (1 - REFIT_MARGIN) * before
+    assert judged.kept is kept
+    if kept:
+        assert (
+            judged.model is judged.fit.model
+            and judged.note == f"refitted on the support ({change})"
+        )
+        np.testing.assert_array_equal(judged.held, held)
+    else:
+        assert judged.model is model
+        assert judged.note == f"the refit on the support validated no better ({change}); not kept"
+    # A validation V_NLS given for the model is the one compared with.
+    worse = judged_refit(model, peaked, val, FIXED, validation_vnls=10 * after, threshold=1e-3)
+    assert worse.kept and worse.model is worse.fit.model
+    assert worse.note.startswith(f"refitted on the support (validation V_NLS {10 * after:.6g} ->")
+    better = judged_refit(model, peaked, val, FIXED, validation_vnls=after, threshold=1e-3)
+    assert not better.kept and better.model is model and better.fit is not None
+    stopped = judged_refit(model, peaked, val, FIXED, max_iter=1, ftol=0.0, xtol=0.0)
+    assert not stopped.kept and stopped.note.startswith("the refit on the support stopped at")
