@@ -205,6 +205,22 @@ def test_noise_floor_rule_with_no_point_to_spare(small):
     assert all(r.vnls > m + 2 * np.sqrt(m) for r in sel.grid if r.order < 2)
 
 
+def test_each_pair_is_identify_with_selects_options(small):
+    import time
+
+    _, data, val = small
+    opts = dict(gammas=[0.3, 3e-2, 3e-3], tolerance=3.0)
+    t0 = time.perf_counter()
+    sel = quiet_select(data, [2], [1], validation=val, **opts)
+    elapsed = time.perf_counter() - t0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        alone = lpvid.identify(data, 2, sel.row.basis, opts["gammas"], val, tolerance=3.0)
+    np.testing.assert_array_equal(sel.model.theta, alone.model.theta)
+    assert sel.row.result.final.gamma == alone.final.gamma
+    assert 0 < sel.row.seconds <= elapsed
+
+
 def test_fixed_for_every_pair_and_per_pair(small):
     _, data, val = small
     sel = quiet_select(data, [2], [1, 2], validation=val, fixed={"D": True})

@@ -6,6 +6,7 @@ import pytest
 import lpvid
 from lpvid.initial.orders import OrderHints
 from lpvid.selected import GridRow, SelectResult, basis_label, choose_pair, free_in_use
+from lpvid.selection import held_out_points
 
 
 def _row(order, degree, *, val=None, n_free=None, vnls=None, floor=None, ok=True):
@@ -158,3 +159,14 @@ def test_basis_labels_and_free_parameters_in_use():
     assert free_in_use(model, kept) == (4 + 2 + 2 + 1) + 4 * 2 + 2
     assert free_in_use(model, kept, {"D": True}) == (4 + 2 + 2) + 4 * 2 + 2
     assert free_in_use(model, {}) == 9
+
+
+def test_held_out_points_are_the_interior_ones():
+    f = np.linspace(1.0, 2.0, 3)
+    # Two parameters on different ranges: interior = at no parameter's lowest or highest value.
+    p = np.array([[0.0, 0.0], [1.0, 2.0], [0.5, 1.0], [0.2, 2.0], [0.7, 0.5], [1.0, 0.3]])
+    data = lpvid.FrfData(p, f, np.ones((6, 3, 1, 1)))
+    assert held_out_points(data, [lpvid.Polynomial(1, n_params=2)]) == [2, 4]
+    one = lpvid.FrfData(np.linspace(0, 1, 5), f, np.ones((5, 3, 1, 1)))
+    assert held_out_points(one, [lpvid.Polynomial(2)]) == [1, 2, 3]  # N = Nb + 3: enough
+    assert held_out_points(one, [lpvid.Polynomial(3)]) == []  # N = Nb + 2: not
