@@ -293,6 +293,29 @@ def test_sigma_from_coherence_matches_a_simulated_experiment():
     assert np.median(ratio) == pytest.approx(np.sqrt((n - 1) / n), abs=0.05)
 
 
+def test_sigma_helpers_values_and_where_they_fail():
+    from lpvid.readers import sigma_from_variance, sigma_relative
+
+    G = np.array([[3.0 + 4.0j, 1.0], [2.0, 0.5j]])
+    np.testing.assert_allclose(sigma_relative(G, 0.1), [[0.5, 0.1], [0.2, 0.05]], rtol=1e-15)
+    np.testing.assert_allclose(sigma_from_variance([4.0, 0.25]), [2.0, 0.5], rtol=1e-15)
+    # Arrays name the index, records the line (1-based); the default names of each helper.
+    with pytest.raises(
+        ValueError, match=r"^G: the FRF is 0j at index \(1, 0\), which gives sigma 0 "
+    ):
+        sigma_relative(np.array([[1.0, 2.0], [0.0j, 1.0]]), 0.1)
+    with pytest.raises(ValueError, match=r"^rec: the FRF is 0.0 at line 2, which gives sigma 0 "):
+        sigma_relative([1.0, 0.0], 0.1, where="rec")
+    with pytest.raises(ValueError, match=r"^variance: variance must be > 0; found 0 at line 2$"):
+        sigma_from_variance([1.0, 0.0])
+    with pytest.raises(ValueError, match=r"^v: variance must be > 0; found -1 at index \(0, 1\)$"):
+        sigma_from_variance([[1.0, -1.0]], where="v")
+    with pytest.raises(
+        ValueError, match=r"^coherence: coherence must lie in \(0, 1\); found 1 at index \(0, 1\) "
+    ):
+        sigma_from_coherence([[1.0, 2.0]], [[0.5, 1.0]], 10)
+
+
 def test_sigma_from_coherence_checks_its_arguments():
     with pytest.raises(ValueError, match=r"coherence must lie in \(0, 1\); found 1 at line 2"):
         sigma_from_coherence([1.0, 2.0], [0.5, 1.0], 10)
