@@ -270,6 +270,32 @@ def test_bad_ranges_are_named():
     assert rep.quadratic is True
 
 
+def test_range_checks_at_the_domain_and_an_lti_report():
+    from lpvid.trust.ranges import check_range, polynomial_A
+
+    m = _scalar([0.5, 0.45], domain=(2.0, 4.0))
+    # A relative slack of 1e-9 of the domain's width (2e-9 here), on both sides.
+    assert check_range(m, (2.0 - 1.5e-9, 4.0 + 1.5e-9)) == [(2.0 - 1.5e-9, 4.0 + 1.5e-9)]
+    for bad in [(2.0 - 3e-9, 4.0), (2.0, 4.0 + 3e-9)]:
+        with pytest.raises(ValueError, match=r"^p_range: \(.*\) reaches outside the basis domain "):
+            check_range(m, bad)
+    two = lpvid.LpvModel(
+        np.zeros((3, 1, 1)),
+        np.zeros((3, 1, 1)),
+        np.zeros((3, 1, 1)),
+        basis=lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)]),
+    )
+    with pytest.raises(ValueError, match=r"^p_range: \(0, 2\) of parameter 1 reaches outside"):
+        check_range(two, [(0.0, 1.0), (0.0, 2.0)])
+    lti = lpvid.LpvModel([[[0.5]]], [[[1.0]]], [[[1.0]]], Ts=1.0)
+    assert check_range(lti, None) == [(0.0, 0.0)] and lpvid.stability(lti).p_range == (0.0, 0.0)
+    # A(p) of a cubic basis that is only linear: degree 1 after the zero terms are dropped.
+    cubic = _scalar([0.5, 0.3, 0.0, 0.0])
+    coef = polynomial_A(cubic, [(0.0, 1.0)])
+    assert coef.shape == (2, 1, 1) and coef[1, 0, 0] == pytest.approx(0.3)
+    assert lpvid.stability(cubic).certificate.degree == 1
+
+
 def test_other_bases_use_the_grid_and_leave_quadratic_open():
     basis = lpvid.CustomBasis([np.sin])
     m = lpvid.LpvModel(
