@@ -330,19 +330,19 @@ def test_judged_refit_without_validation_and_the_report_lines():
 
 
 def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
-    # Against an independent run of the same steps: refit on the support (ftol FTOL), the
+    # Against an independent run of the same steps: refit on the support to convergence, the
     # validation V_NLS before and after, kept only beyond REFIT_MARGIN.
-    from lpvid.settings import FTOL
     from lpvid.trust.refit import REFIT_MARGIN, judged_refit
 
     model = lpvid.fit_l21(_start(), peaked, 1e-3, fixed=FIXED).model
     val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
-    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0), ftol=FTOL)
+    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
+    assert fit.converged
     before, after = lpvid.vnls(model, val), lpvid.vnls(fit.model, val)
     change = f"validation V_NLS {before:.6g} -> {after:.6g}"
     judged = judged_refit(model, peaked, val, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
     np.testing.assert_array_equal(judged.fit.model.theta, fit.model.theta)
-    kept = fit.converged and after < (1 - REFIT_MARGIN) * before
+    kept = after < (1 - REFIT_MARGIN) * before
     assert judged.kept is kept
     if kept:
         assert (
@@ -359,5 +359,9 @@ def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
     assert worse.note.startswith(f"refitted on the support (validation V_NLS {10 * after:.6g} ->")
     better = judged_refit(model, peaked, val, FIXED, validation_vnls=after, threshold=1e-3)
     assert not better.kept and better.model is model and better.fit is not None
+    # A refit stopped at its step limit is judged the same way, and its note says so.
     stopped = judged_refit(model, peaked, val, FIXED, max_iter=1, ftol=0.0, xtol=0.0)
-    assert not stopped.kept and stopped.note.startswith("the refit on the support stopped at")
+    assert not stopped.fit.converged and stopped.fit.n_iter == 1
+    assert "; it stopped at its step limit (1 steps), not converged)" in stopped.note
+    after1 = lpvid.vnls(stopped.fit.model, val)
+    assert stopped.kept is bool(after1 < (1 - REFIT_MARGIN) * before)
