@@ -195,11 +195,9 @@ impl Frames {
                         None => Coefficients::combine(&coef.a, nn, psi1, adk),
                         Some(dt) => {
                             let f = with_forcing.then(|| &mut forcing[k * fs..(k + 1) * fs]);
-                            if work.is_none() {
-                                *work = Some(Sample::new(coef, reference)?);
-                            }
-                            let Some(sample) = work.as_mut() else {
-                                unreachable!("the scratch space was just made")
+                            let sample = match work {
+                                Some(sample) => sample,
+                                None => work.insert(Sample::new(coef, reference)?),
                             };
                             // With AVX2 and FMA where the CPU has them.
                             pulp::Arch::new()
