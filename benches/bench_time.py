@@ -17,7 +17,7 @@ before its elimination). Prints medians over repetitions of
   elimination of the initial state,
 - the sensitivities' throughput: samples times parameters per second of
   the matrices per sample and the sensitivity recursion together, against
-  the samples per second of ``lpvid.simulate`` on the same record (the
+  the samples per second of ``LpvModel.simulate`` on the same record (the
   ratio: what one parameter's sensitivity costs in simulations).
 
 The machines are shared and noisy: compare medians.
@@ -92,7 +92,7 @@ def main() -> None:
         print(f"  {key[:-2]:<16} {1e3 * np.median(stages[key]):8.1f} ms")
     sens = np.median(stages["discretisation_s"]) + np.median(stages["sensitivities_s"])
     per_parameter = T * (k - n) / sens
-    print(f"lpvid.simulate: {1e3 * simulation:8.1f} ms, {T / simulation:.3g} samples/s")
+    print(f"LpvModel.simulate: {1e3 * simulation:8.1f} ms, {T / simulation:.3g} samples/s")
     print(
         f"sensitivities (matrices per sample + recursion): {per_parameter:.3g} "
         f"samples/s per parameter; all {k - n} parameters cost "
