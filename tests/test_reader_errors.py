@@ -303,3 +303,17 @@ def test_missing_manifest(tmp_path):
 def test_manifest_argument_of_the_wrong_type():
     with pytest.raises(TypeError, match=r"^manifest: expected the path of a \.toml file, got int"):
         load(3)
+
+
+def test_direction_codes_and_channel_texts():
+    from lpvid.readers.records import Channel, direction_name, parse_direction
+
+    names = ["+X", "+Y", "+Z", "+RX", "+RY", "+RZ"]
+    assert [direction_name(k) for k in range(1, 7)] == names
+    assert [direction_name(-k) for k in range(1, 7)] == [n.replace("+", "-") for n in names]
+    assert direction_name(0) == direction_name(None) == ""
+    # parse_direction is its inverse
+    assert all(parse_direction(direction_name(k), "d") == k for k in [*range(-6, 0), *range(1, 7)])
+    assert Channel(label="head", node=3, direction=-5, index=None).describe() == "'head' node 3 -RY"
+    assert Channel(label=None, node=None, direction=None, index=0).describe() == "#1"
+    assert Channel(label=None, node=None, direction=None, index=None).describe() == "unlabelled"

@@ -48,8 +48,11 @@ def gantry_start(gantry):
     return lpvid.smile(local, basis=gantry.basis)
 
 
-def gantry_uff(folder, data, records="labels"):
-    """The gantry at its 5 points as UFF: even points ASCII, odd points binary."""
+def gantry_uff(folder, data, records="labels", averages=AVERAGES):
+    """The gantry at its 5 points as UFF: even points ASCII, odd points binary.
+
+    The coherence records are those of AVERAGES averages; the manifest says ``averages``.
+    """
     coh = coherence_for(data.G, data.sigma, AVERAGES)
     points = []
     for q, p in enumerate(data.p):
@@ -57,7 +60,7 @@ def gantry_uff(folder, data, records="labels"):
         write_uff(folder / name, data.freqs_hz, data.G[q], binary=q % 2 == 1, coherence=coh[q])
         points.append((p, name))
     header = f'Ts = {data.Ts!r}\nrecords = "{records}"\n'
-    header += f'sigma = {{ from = "coherence", averages = {AVERAGES} }}\n'
+    header += f'sigma = {{ from = "coherence", averages = {averages} }}\n'
     header += 'parameters = ["tube side [mm]"]\n' + OUTPUTS_BY_NODE
     return write_manifest(folder / f"gantry-{records}.toml", header, points)
 
@@ -82,6 +85,11 @@ def test_uff_ascii_and_binary_load_the_gantry_data(tmp_path, gantry):
     assert prov["parameters"] == ["tube side [mm]"]
     assert prov["points"][1]["records"] == ["tube30.uff, record 1", "tube30.uff, record 3"]
     assert prov["points"][0]["sigma"] == f"coherence, {AVERAGES} averages"
+    # The manifest's count of averages is used: the same coherence records said to come
+    # from four times as many averages give half the sigma (Bendat-Piersol, 1 / sqrt(n)).
+    more = lpvid.FrfData.from_files(gantry_uff(tmp_path, data, averages=4 * AVERAGES))
+    np.testing.assert_allclose(more.sigma, loaded.sigma / 2, rtol=1e-12)
+    assert more.provenance["points"][3]["sigma"] == f"coherence, {4 * AVERAGES} averages"
 
 
 def test_the_docstring_manifest_loads(tmp_path, gantry):
@@ -283,6 +291,29 @@ def test_sigma_from_coherence_matches_a_simulated_experiment():
     ratio = np.sqrt(np.mean(sigma**2, axis=0)) / true_std
     assert np.all(np.abs(ratio - 1) < 0.25), ratio
     assert np.median(ratio) == pytest.approx(np.sqrt((n - 1) / n), abs=0.05)
+
+
+def test_sigma_helpers_values_and_where_they_fail():
+    from lpvid.readers import sigma_from_variance, sigma_relative
+
+    G = np.array([[3.0 + 4.0j, 1.0], [2.0, 0.5j]])
+    np.testing.assert_allclose(sigma_relative(G, 0.1), [[0.5, 0.1], [0.2, 0.05]], rtol=1e-15)
+    np.testing.assert_allclose(sigma_from_variance([4.0, 0.25]), [2.0, 0.5], rtol=1e-15)
+    # Arrays name the index, records the line (1-based); the default names of each helper.
+    with pytest.raises(
+        ValueError, match=r"^G: the FRF is 0j at index \(1, 0\), which gives sigma 0 "
+    ):
+        sigma_relative(np.array([[1.0, 2.0], [0.0j, 1.0]]), 0.1)
+    with pytest.raises(ValueError, match=r"^rec: the FRF is 0.0 at line 2, which gives sigma 0 "):
+        sigma_relative([1.0, 0.0], 0.1, where="rec")
+    with pytest.raises(ValueError, match=r"^variance: variance must be > 0; found 0 at line 2$"):
+        sigma_from_variance([1.0, 0.0])
+    with pytest.raises(ValueError, match=r"^v: variance must be > 0; found -1 at index \(0, 1\)$"):
+        sigma_from_variance([[1.0, -1.0]], where="v")
+    with pytest.raises(
+        ValueError, match=r"^coherence: coherence must lie in \(0, 1\); found 1 at index \(0, 1\) "
+    ):
+        sigma_from_coherence([[1.0, 2.0]], [[0.5, 1.0]], 10)
 
 
 def test_sigma_from_coherence_checks_its_arguments():

@@ -175,6 +175,25 @@ def test_held_out_rotation_without_validation(small):
         total += lpvid.vnls(fit.model, data.subset([q]))
     assert row.validation_vnls == pytest.approx(total, rel=1e-9)
     assert "held-out" in sel.reason and "held-out" in sel.table()
+    # The options of select reach the held-out runs too.
+    opts = dict(gammas=[0.3, 3e-2, 3e-3], fixed={"D": True}, tolerance=3.0)
+    sel = quiet_select(data, [2], [1], **opts)
+    total = 0.0
+    for q in (1, 2, 3):
+        keep = [k for k in range(5) if k != q]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+            fit = lpvid.identify(
+                data.subset(keep),
+                2,
+                sel.row.basis,
+                opts["gammas"],
+                None,
+                opts["fixed"],
+                tolerance=opts["tolerance"],
+            )
+        total += lpvid.vnls(fit.model, data.subset([q]))
+    assert sel.row.validation_vnls == pytest.approx(total, rel=1e-9)
 
 
 def test_noise_floor_rule_with_no_point_to_spare(small):
@@ -184,6 +203,22 @@ def test_noise_floor_rule_with_no_point_to_spare(small):
     m = sel.row.noise_floor
     assert sel.row.vnls <= m + 2 * np.sqrt(m)
     assert all(r.vnls > m + 2 * np.sqrt(m) for r in sel.grid if r.order < 2)
+
+
+def test_each_pair_is_identify_with_selects_options(small):
+    import time
+
+    _, data, val = small
+    opts = dict(gammas=[0.3, 3e-2, 3e-3], tolerance=3.0)
+    t0 = time.perf_counter()
+    sel = quiet_select(data, [2], [1], validation=val, **opts)
+    elapsed = time.perf_counter() - t0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        alone = lpvid.identify(data, 2, sel.row.basis, opts["gammas"], val, tolerance=3.0)
+    np.testing.assert_array_equal(sel.model.theta, alone.model.theta)
+    assert sel.row.result.final.gamma == alone.final.gamma
+    assert 0 < sel.row.seconds <= elapsed
 
 
 def test_fixed_for_every_pair_and_per_pair(small):

@@ -164,7 +164,7 @@ def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
         )
         e, r = res.entry, res.refit_entry
         assert res.refit is not None and r is not None
-        better = r.validation_vnls < (1 - 1e-3) * e.validation_vnls
+        better = r.validation_vnls < (1 - lpvid.trust.refit.REFIT_MARGIN) * e.validation_vnls
         assert res.refitted == better
         seen[better] += 1
         assert res.final.validation_vnls <= e.validation_vnls
@@ -178,3 +178,186 @@ def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
     )
     assert no.refit is None and no.model is no.entry.model and no.final is no.entry
     assert no.covariance is not None and "refit=False" in no.reason
+
+
+def _ct_window():
+    """x' = a(p) x, a stable start (a = -1) and a model unstable only in a narrow window.
+
+    a(s) = 1e-8 - (s - s0)^2 (s = 2p - 1) is positive for |p - p0| < 5e-5 only, p0 midway
+    between two of the core's check points (a uniform grid of 2049 points on [0, 1]).
+    """
+    from lpvid.trust.enforce import CHECK_POINTS
+
+    p0 = (1000.5) / (CHECK_POINTS - 1)
+    s0 = 2 * p0 - 1
+    k = len(BASIS) + 1
+    B = np.zeros((k, 1, 1))
+    B[0] = 1.0
+    start = lpvid.LpvModel([[[-1.0]], [[0.0]], [[0.0]]], B, B.copy(), basis=BASIS)
+    bad = lpvid.LpvModel([[[1e-8 - s0**2]], [[2 * s0]], [[-1.0]]], B, B.copy(), basis=BASIS)
+    return start, bad, p0
+
+
+def test_stable_fits_recheck_the_continuum_between_the_check_points():
+    # A stand-in for the core's fit: it returns the window model whenever the check points
+    # it is given call it stable (as the core would), else it stays at the start.
+    from lpvid.trust.enforce import run_stable
+
+    start, bad, p0 = _ct_window()
+    assert lpvid.frozen.stability_margin(lpvid.frozen.frozen_poles(bad, [p0]), None)[0] < 0
+    seen = []
+
+    def fit(points):
+        seen.append(points.worst(1, 1, 1, bad.theta)[1])
+        theta = bad.theta if seen[-1] >= STABLE_TOL else start.theta
+        return {"theta": theta, "interrupted": False}
+
+    raw = run_stable(start, None, fit)
+    # The first fit passed its check points; the check of the continuum found the window
+    # and the second fit, with its place among the check points, refused the model.
+    assert seen[0] == 1.0 and seen[1] < 0 and len(seen) == 2
+    np.testing.assert_array_equal(raw["theta"], start.theta)
+    # A fit that keeps returning an unstable model is an error after MAX_ROUNDS, never a result.
+    seen.clear()
+    with pytest.raises(RuntimeError, match=r"^stable=True: after 3 rounds .*\(at p = 0\.4885"):
+        run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": False})
+    # An interrupted fit is returned as it is (the caller reports it).
+    out = run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": True})
+    assert out["interrupted"]
+
+
+@pytest.mark.parametrize("how", ["stable", "pinned"])
+def test_ctrl_c_stops_a_stable_or_pinned_sweep(peaked, how):
+    # Ctrl-C during the first fit (a callback that raises it once): the sweep returns that
+    # interrupted fit and starts no other.
+    calls = []
+
+    def once(row):
+        calls.append(row)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+
+    path = lpvid.l21_path(
+        _start(), peaked, [1e-2, 1e-3, 1e-4], fixed=FIXED, callback=once, warn=False, **{how: True}
+    )
+    assert len(path) == 1 and path[-1].interrupted and path[-1].stop == "keyboard_interrupt"
+    assert len(calls) == 1
+
+
+def test_stable_fit_replaces_only_what_is_unstable_on_its_range():
+    # a(p) = 0.99 + 0.02 p: margin 5e-3 on [0, 0.25], 0 at p = 0.5, unstable beyond.
+    from lpvid.trust.steps import stable_fit
+
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))  # s = 2 p - 1
+    one, zero = [[1.0]], [[0.0]]
+    true = lpvid.LpvModel([[[1.0]], [[0.01]]], [[[0.1]], zero], [one, zero], None, basis, 1.0)
+    p = np.array([0.0, 0.25, 0.5])
+    f = np.linspace(0.02, 0.5, 40)
+    data = lpvid.FrfData(p, f, true.frf(f, p), sigma=0.01, Ts=1.0)
+    fit = lpvid.fit_nls(true, data, {"D": True})
+    assert fit.model.D[0, 0, 0] == 0.0
+    assert stable_fit(fit, data, {"D": True}, 1e-6, (0.0, 0.25)) is fit
+    out = stable_fit(fit, data, {"D": True}, 1e-6, (0.0, 0.5))
+    rep = lpvid.stability(out.model, (0.0, 0.5), quadratic=False)
+    assert out is not fit and rep.stable and rep.margin >= STABLE_TOL
+    assert out.model.D[0, 0, 0] == 0.0  # fixed stays fixed
+    assert not lpvid.stability(out.model, quadratic=False).stable  # beyond the range: free
+
+
+def test_stabilised_on_its_range_only_and_to_the_margin_asked():
+    # Discrete time, a(p) = 0.9999 (margin 1e-4): scaled to margin 1e-3 exactly.
+    close = stabilised(_start(0.9999))
+    assert lpvid.stability(close, quadratic=False).margin == pytest.approx(1e-3, rel=1e-9)
+    # a(s) = 0.9 + 0.2 s: stable with margin 0.1 on p in [0, 0.5], unstable beyond:
+    # unchanged on [0, 0.5], scaled on the whole range.
+    base = _start(0.9)
+    A = base.A.copy()
+    A[1, 0, 0] = 0.2
+    tilted = lpvid.LpvModel(A, base.B, base.C, basis=BASIS, Ts=1.0)
+    assert stabilised(tilted, (0.0, 0.5)) is tilted
+    assert lpvid.stability(stabilised(tilted), quadratic=False).margin == pytest.approx(1e-3)
+    # Continuous time over two parameters: A(p) = -0.5 + 1.5 s1 + 0.2 s2 (unstable where
+    # s1 > 1/3): shifted until stable on the box.
+    basis = lpvid.Polynomial(1, domain=[(0.0, 1.0), (0.0, 1.0)])
+    B = np.zeros((3, 1, 1))
+    B[0] = 1.0
+    ct = lpvid.LpvModel([[[-0.5]], [[1.5]], [[0.2]]], B, B.copy(), basis=basis)
+    assert not lpvid.stability(ct, quadratic=False).stable
+    rep = lpvid.stability(stabilised(ct), quadratic=False)
+    assert rep.stable and rep.margin > 0
+
+
+def test_judged_refit_without_validation_and_the_report_lines():
+    from types import SimpleNamespace
+
+    from lpvid.trust.refit import judged_refit
+    from lpvid.trust.steps import refit_line, trust_lines
+
+    # B(1) = 1e-7 B(0) (relative 1e-7: dropped at the default 1e-6), A(1) = 0.5 A(0) on
+    # [0, 1] but 2 over p_range (0, 4) of a domain-free basis: kept.
+    one, zero = [[1.0]], [[0.0]]
+    m = lpvid.LpvModel(
+        [[[0.2]], [[0.05]]], [one, [[1e-7]]], [one, zero], None, lpvid.Polynomial(1), 1.0
+    )
+    judged = judged_refit(m, None, None, {"D": True}, p_range=(0.0, 1.0))
+    assert judged.model is m and judged.fit is None and judged.kept is False
+    assert judged.note == (
+        "not refitted: without validation data nothing tells whether a refit on the support "
+        "interpolates better (lpvid.refit runs it)"
+    )
+    want = lpvid.fixed_mask(m, {"D": True, "B": [1], "C": [1]})
+    np.testing.assert_array_equal(judged.held, want)
+    assert judged_refit(m, None, None, threshold=0.3, p_range=(0.0, 1.0)).held[1]  # A(1) 0.25
+    assert not judged_refit(m, None, None, threshold=0.3, p_range=(0.0, 4.0)).held[1]  # 1.0
+    entry = SimpleNamespace(vnls=120.0, validation_vnls=80.0)
+    refitted = SimpleNamespace(vnls=110.0, validation_vnls=70.0)
+    head = "refit on the support (dropped groups fixed at zero): V_NLS 120 -> 110"
+    assert refit_line(entry, refitted, True) == head + "; validation V_NLS 80 -> 70; kept"
+    alone = SimpleNamespace(vnls=110.0, validation_vnls=None)
+    assert refit_line(entry, alone, False) == head + "; not kept, the path's model returned"
+    assert refit_line(SimpleNamespace(vnls=120.0, validation_vnls=None), refitted, True) == (
+        head + "; kept"
+    )
+    cov = SimpleNamespace(rank=7, n_unidentified=2)
+    lines = trust_lines(entry, refitted, False, cov, None)
+    assert lines[0].endswith("; not kept, the path's model returned")
+    assert lines[1] == (
+        "covariance: rank 7; 2 parameter direction(s) leave the FRF at every identification "
+        "point unchanged (the data cannot tell them apart) and are left out: between the "
+        "points the band may be too narrow"
+    )
+    assert trust_lines(entry, None, False, SimpleNamespace(rank=7, n_unidentified=0), None) == []
+
+
+def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
+    # Against an independent run of the same steps: refit on the support (ftol FTOL), the
+    # validation V_NLS before and after, kept only beyond REFIT_MARGIN.
+    from lpvid.settings import FTOL
+    from lpvid.trust.refit import REFIT_MARGIN, judged_refit
+
+    model = lpvid.fit_l21(_start(), peaked, 1e-3, fixed=FIXED).model
+    val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
+    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0), ftol=FTOL)
+    before, after = lpvid.vnls(model, val), lpvid.vnls(fit.model, val)
+    change = f"validation V_NLS {before:.6g} -> {after:.6g}"
+    judged = judged_refit(model, peaked, val, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
+    np.testing.assert_array_equal(judged.fit.model.theta, fit.model.theta)
+    kept = fit.converged and after < (1 - REFIT_MARGIN) * before
+    assert judged.kept is kept
+    if kept:
+        assert (
+            judged.model is judged.fit.model
+            and judged.note == f"refitted on the support ({change})"
+        )
+        np.testing.assert_array_equal(judged.held, held)
+    else:
+        assert judged.model is model
+        assert judged.note == f"the refit on the support validated no better ({change}); not kept"
+    # A validation V_NLS given for the model is the one compared with.
+    worse = judged_refit(model, peaked, val, FIXED, validation_vnls=10 * after, threshold=1e-3)
+    assert worse.kept and worse.model is worse.fit.model
+    assert worse.note.startswith(f"refitted on the support (validation V_NLS {10 * after:.6g} ->")
+    better = judged_refit(model, peaked, val, FIXED, validation_vnls=after, threshold=1e-3)
+    assert not better.kept and better.model is model and better.fit is not None
+    stopped = judged_refit(model, peaked, val, FIXED, max_iter=1, ftol=0.0, xtol=0.0)
+    assert not stopped.kept and stopped.note.startswith("the refit on the support stopped at")

@@ -94,10 +94,21 @@ def test_time_cost_checks_its_options():
         lpvid.TimeCost(td, x0="guess")
     with pytest.raises(ValueError, match=r"^skip: 20 samples skipped leave nothing"):
         lpvid.TimeCost(td, skip=20)
-    with pytest.raises(TypeError, match=r"^skip: expected an integer"):
+    with pytest.raises(TypeError, match=r"^skip: expected an integer, got float$"):
         lpvid.TimeCost(td, skip=1.5)
-    with pytest.raises(TypeError, match=r"^time_data: expected a TimeData"):
+    with pytest.raises(TypeError, match=r"^skip: expected an integer, got bool$"):
+        lpvid.TimeCost(td, skip=True)
+    with pytest.raises(ValueError, match=r"^skip: expected an integer >= 0, got -1$"):
+        lpvid.TimeCost(td, skip=-1)
+    with pytest.raises(TypeError, match=r"^time_data: expected a TimeData, got ndarray$"):
         lpvid.TimeCost(np.ones(3))
+    with pytest.raises(TypeError, match=r"^time_data: expected a TimeData or TimeCost, got list$"):
+        lpvid.time_vnls(None, [td])
+    with pytest.raises(ValueError, match=r"^x0: expected a 1 or 2-dimensional array"):
+        lpvid.TimeCost(td, x0=np.zeros((1, 1, 2)))
+    # The options are stored checked: x0 as an array, skip as a Python int.
+    cost = lpvid.TimeCost(td, x0=[1.0, 2.0], skip=np.int64(3))
+    assert isinstance(cost.x0, np.ndarray) and type(cost.skip) is int and cost.skip == 3
     with pytest.raises(ValueError, match=r"^x0: expected shape \(2,\) or \(1, 2\)"):
         lpvid.TimeCost(td, x0=np.zeros(3)).x0_values(2)
     np.testing.assert_array_equal(lpvid.TimeCost(td, x0=[1.0, 2.0]).x0_values(2), [[1.0, 2.0]])

@@ -3,11 +3,13 @@ cannot tell from another, divergence, and fits on FRFs and records together."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
 import lpvid
-from lpvid.timecost import TimeCost, build_time_problem
+from lpvid.timecost import TimeCost, build_time_problem, check_time_data
 
 
 def two_parameter_model(rng, Ts):
@@ -82,6 +84,125 @@ def test_gradient_and_gauss_newton_match_central_differences(Ts, x0):
         want = want - J.T @ Jx @ np.linalg.solve(Jx.T @ Jx, Jx.T @ J)
     m = idx.size
     np.testing.assert_allclose(h.reshape(m, m), want, rtol=0, atol=2e-6 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("Ts", [0.1, None], ids=["discrete", "continuous"])
+def test_the_cost_weights_every_output_and_sample_by_its_own_sigma(Ts):
+    # Against the simulation from rest, weighted here: sigma differs per output and sample.
+    rng = np.random.default_rng(5)
+    model = two_parameter_model(rng, Ts)
+    td = records(rng, [40, 25, 30], dt=0.1)
+    cost = TimeCost(td, x0="zero", skip=4)
+    each = zip(td.u, td.p, td.y, td.sigma, strict=True)
+    want = [((model.simulate(u, p, dt=0.1) - y) / s)[4:] for u, p, y, s in each]
+    got = lpvid.time_residual(model, cost)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_allclose(g, w, rtol=1e-10, atol=1e-12 * np.abs(w).max())
+    total = sum(float(np.sum(w**2)) for w in want)
+    assert lpvid.time_vnls(model, cost) == pytest.approx(total, rel=1e-10)
+
+
+def test_fit_time_follows_sigma_per_output_and_per_sample():
+    # y1 is precise except in a burst where sigma (and the noise) is 300 times larger;
+    # y2 is noisy throughout. Weighted by sigma, the fit recovers A and B to 3e-4 (their standard
+    # errors are about 5e-5); unweighted, the burst and y2 pull them ten times further off.
+    rng = np.random.default_rng(2)
+    T = 600
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))
+    one, zero = [[1.0]], [[0.0]]
+    true = lpvid.LpvModel(
+        [[[0.8]], [[0.1]]], [one, zero], [[[1.0], [0.5]], [[0.0], [0.0]]], None, basis, 1.0
+    )
+    u, p = rng.normal(size=T), rng.uniform(size=T)
+    sigma = np.tile([1e-3, 0.3], (T, 1))
+    sigma[200:350, 0] = 0.3
+    y = true.simulate(u, p) + sigma * rng.normal(size=(T, 2))
+    fixed = {"C": True, "D": True}
+    start = lpvid.LpvModel(0.95 * true.A, 0.95 * true.B, true.C, None, basis, 1.0)
+    weighted = lpvid.fit_time(start, lpvid.TimeData(u, p, y, 1.0, sigma), x0="zero", fixed=fixed)
+    plain = lpvid.fit_time(start, lpvid.TimeData(u, p, y, 1.0), x0="zero", fixed=fixed)
+    free = lpvid.free_mask(true, fixed)
+    err_w = np.abs(weighted.model.theta - true.theta)[free].max()
+    err_p = np.abs(plain.model.theta - true.theta)[free].max()
+    assert 0.85 < weighted.vnls / weighted.noise_floor < 1.15
+    assert err_w < 3e-4 and err_p > 10 * err_w
+
+
+def test_fit_time_options_reach_the_cost():
+    # x0 and skip given to fit_time, or carried by a TimeCost, are the cost that is
+    # minimised: the fitted vnls is time_vnls of the fitted model with the same options.
+    rng = np.random.default_rng(7)
+    T = 300
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))
+    one, zero = [[1.0]], [[0.0]]
+    true = lpvid.LpvModel([[[0.9]], [[0.05]]], [one, zero], [one, zero], None, basis, 1.0)
+    u, p = rng.normal(size=T), rng.uniform(size=T)
+    y = true.simulate(u, p, x0=[5.0]) + 0.01 * rng.normal(size=(T, 1))
+    td = lpvid.TimeData(u, p, y, 1.0, 0.01)
+    start = true.with_theta(true.theta * 0.97)
+    fixed = {"C": True, "D": True}
+    for x0, skip in [("zero", 0), ("zero", 40), ([5.0], 0), ("estimate", 0)]:
+        fit = lpvid.fit_time(start, td, x0=x0, skip=skip, fixed=fixed)
+        again = lpvid.fit_time(start, TimeCost(td, x0=x0, skip=skip), fixed=fixed)
+        np.testing.assert_array_equal(again.model.theta, fit.model.theta)
+        assert fit.noise_floor == T - skip
+        want = lpvid.time_vnls(fit.model, td, x0=x0, skip=skip)
+        assert fit.vnls == pytest.approx(want, rel=1e-9)
+    # From rest, the response to x(0) = 5 is a misfit until it has died out (0.9^40 ~ 1 %).
+    assert lpvid.time_vnls(true, td, x0="zero") > 100 * lpvid.time_vnls(true, td, x0=[5.0])
+    with pytest.raises(ValueError, match=r"^x0, skip: a TimeCost carries its own"):
+        lpvid.fit_time(start, TimeCost(td), x0="zero")
+    with pytest.raises(ValueError, match=r"^gamma: expected a finite number >= 0, got -1"):
+        lpvid.fit_time(start, td, gamma=-1.0)
+    with pytest.warns(lpvid.ConvergenceWarning, match=r"^fit_time stopped at its iteration"):
+        lpvid.fit_time(true.with_theta(true.theta * 0.5), td, max_iter=4, lambda0=10.0)
+
+
+def test_fit_time_l21_settings_range_and_callback():
+    # gamma 3e-3, not the core's default 1e-3. A basis without a domain: the group norms
+    # are taken over the range the records visit, or over the p_range given; settings and
+    # callbacks reach the fit.
+    rng = np.random.default_rng(8)
+    T = 300
+    basis = lpvid.Polynomial(1)
+    one, zero = [[1.0]], [[0.0]]
+    true = lpvid.LpvModel([[[0.8]], [[0.1]]], [one, zero], [one, zero], None, basis, 1.0)
+    p = 0.2 + 0.5 * rng.uniform(size=T)
+    u = rng.normal(size=T)
+    td = lpvid.TimeData(u, p, true.simulate(u, p) + 0.01 * rng.normal(size=(T, 1)), 1.0, 0.01)
+    start = true.with_theta(true.theta * 0.97)
+    kw = dict(x0="zero", fixed={"C": True, "D": True})
+    seen = []
+    fit = lpvid.fit_time(start, td, gamma=3e-3, callback=seen.append, **kw)
+    assert seen and len(seen) == len(fit.history)
+    np.testing.assert_array_equal(fit.model.C, start.C)  # fixed
+    assert not np.array_equal(fit.model.B, start.B)
+    assert fit.objective > fit.vnls / fit.noise_floor * (1 + 1e-4)  # the penalty counts
+    less = lpvid.fit_time(start, td, gamma=1e-3, **kw)  # less shrinkage: another fit
+    assert not np.allclose(less.model.theta, fit.model.theta, rtol=1e-6, atol=0)
+    visited = (float(p.min()), float(p.max()))
+    np.testing.assert_allclose(fit.group_norms.relative, fit.model.group_norms(visited).relative)
+    wide = lpvid.fit_time(start, td, gamma=3e-3, p_range=(0.0, 2.0), **kw)
+    want = wide.model.group_norms((0.0, 2.0)).relative  # ||psi_1||_inf = 2, not 0.7
+    np.testing.assert_allclose(wide.group_norms.relative, want)
+    assert not np.allclose(want, wide.model.group_norms(visited).relative)
+    # A model with a range of its own: the group norms over that range.
+    ranged = lpvid.LpvModel(
+        start.A, start.B, start.C, None, lpvid.Polynomial(1, domain=(0, 2)), 1.0
+    )
+    own = lpvid.fit_time(ranged, td, gamma=3e-3, **kw)
+    np.testing.assert_allclose(own.group_norms.relative, own.model.group_norms().relative)
+    assert not np.allclose(own.group_norms.relative, own.model.group_norms(visited).relative)
+    limit = r"^fit_time \(gamma = 0\.003\) stopped at its iteration limit"
+    with pytest.warns(lpvid.ConvergenceWarning, match=limit):
+        short = lpvid.fit_time(start, td, gamma=3e-3, settings=lpvid.L21Settings(max_outer=1), **kw)
+    assert short.outer_iterations == 1 < fit.outer_iterations
+    with pytest.warns(lpvid.ConvergenceWarning, match=limit):
+        assert lpvid.fit_time(start, td, gamma=3e-3, max_outer=1, **kw).outer_iterations == 1
+    nls = lpvid.fit_time(start, td, callback=lambda row: False, **kw)
+    assert nls.interrupted and nls.n_iter == 1
+    l21 = lpvid.fit_time(start, td, gamma=3e-3, callback=lambda row: False, **kw)
+    assert l21.interrupted and len(l21.history) == 1
 
 
 # ---------------------------------------------------------------- a known system
@@ -196,7 +317,11 @@ def test_records_that_do_not_fit_the_model_are_named():
         lpvid.fit_time(true, lpvid.TimeData(td.u[0], td.p[0], td.y[0][:, 0], dt=1.0))
     with pytest.warns(UserWarning, match=r"^time_data: record 0 leaves the model's scheduling"):
         lpvid.time_vnls(true, lpvid.TimeData(td.u[0], 1.5 * td.p[0], td.y[0], dt=1.0))
-    with pytest.raises(ValueError, match=r"^max_iter: limits the Levenberg-Marquardt fit"):
+    with pytest.raises(
+        ValueError,
+        match=r"^max_iter: limits the Levenberg-Marquardt fit \(gamma = 0\); with gamma > 0 set "
+        r"max_outer and max_inner \(L21Settings\)$",
+    ):
         lpvid.fit_time(true, td, gamma=1e-3, max_iter=5)
     with pytest.raises(ValueError, match=r"^settings: the l2,1 settings apply"):
         lpvid.fit_time(true, td, settings=lpvid.L21Settings())
@@ -206,6 +331,62 @@ def test_records_that_do_not_fit_the_model_are_named():
         lpvid.fit_time(true, TimeCost(td), skip=3)
     with pytest.raises(TypeError, match=r"^time_data: expected a TimeData"):
         lpvid.fit_time(true, np.ones(3))
+
+
+def test_time_records_against_frf_data_and_defaults():
+    true, _ = known_pair(1.0)
+    td = record(true, 1, True, T=60)
+    # The defaults of the helpers are those of a plain TimeCost (x0 estimated, skip 0).
+    cost = TimeCost(td)
+    np.testing.assert_array_equal(lpvid.initial_states(true, td), lpvid.initial_states(true, cost))
+    for a, b in zip(lpvid.time_residual(true, td), lpvid.time_residual(true, cost), strict=True):
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(TypeError, match=r"^model: expected an LpvModel, got str$"):
+        lpvid.time_vnls("model", td)
+    two = lpvid.TimeData(td.u[0], np.column_stack([td.p[0], td.p[0]]), td.y[0], dt=1.0)
+    with pytest.raises(
+        ValueError, match=r"^time_data: has 2 scheduling parameter\(s\), the model's basis takes 1$"
+    ):
+        lpvid.time_vnls(true, two)
+    f = np.linspace(0.01, 0.4, 5)
+    frf = lpvid.FrfData([0.2, 0.8], f, true.frf(f, [0.2, 0.8]), Ts=1.0)
+    one_out = lpvid.TimeData(td.u[0], td.p[0], td.y[0][:, 0], dt=1.0)
+    with pytest.raises(
+        ValueError,
+        match=r"^time_data: 1 outputs, 1 inputs and 1 scheduling parameter\(s\), the FRF data "
+        r"2, 1 and 1$",
+    ):
+        check_time_data(frf, one_out)
+    slow = lpvid.TimeData(td.u[0], td.p[0], td.y[0], dt=0.5)
+    with pytest.raises(
+        ValueError,
+        match=r"^time_data: sample time dt=0.5 s differs from the FRF data's Ts=1 s \(a "
+        r"discrete-time model runs at one sample time\)$",
+    ):
+        check_time_data(frf, slow)
+
+
+def test_records_leaving_the_range_warn_beyond_a_relative_1e9():
+    one, zero = [[1.0]], [[0.0]]
+
+    def leaves(lo, hi, top, bottom=None):
+        basis = lpvid.Polynomial(1, domain=(lo, hi))
+        m = lpvid.LpvModel([[[0.5]], [[0.1]]], [one, zero], [one, zero], None, basis, 1.0)
+        p = np.linspace(lo + 0.1 * (hi - lo) if bottom is None else bottom, top, 20)
+        td = lpvid.TimeData(np.ones(20), p, np.zeros(20), dt=1.0)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            lpvid.time_vnls(m, td, x0="zero")
+        return [str(w.message) for w in caught]
+
+    # The slack is 1e-9 times the width of the range (at least 1e-9).
+    assert leaves(1.0, 3.0, 3.0 + 1e-9) == [] and leaves(0.0, 0.5, 0.5 + 0.9e-9) == []
+    assert len(leaves(1.0, 3.0, 3.0 + 3e-9)) == 1 and len(leaves(0.0, 0.5, 0.5 + 1.5e-9)) == 1
+    assert len(leaves(2.0, 3.0, 3.0, bottom=2.0 - 3e-9)) == 1  # below the range too
+    assert leaves(0.0, 1.0, 1.5) == [
+        "time_data: record 0 leaves the model's scheduling range [0.0, 1.0] (it spans [0.1] to "
+        "[1.5]); the basis functions extrapolate there"
+    ]
 
 
 def test_l21_on_time_records_drops_a_spurious_group():

@@ -13,7 +13,10 @@ check points' stable set.
 After the fit, :func:`lpvid.stability` checks the continuum. Should it find
 an unstable frozen model between the check points, that scheduling value
 is added to them and the fit runs again from the same start (at most
-:data:`MAX_ROUNDS` times).
+:data:`MAX_ROUNDS` times), every check point then evaluated at every step:
+a point added where the margin dips between two coarse samples that are
+not local minima would otherwise be skipped, and the fit would return to
+the same unstable place.
 """
 
 from __future__ import annotations
@@ -49,9 +52,11 @@ def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[
     if len(pairs) == 1:
         lo, hi = pairs[0]
         p = np.linspace(lo, hi, CHECK_POINTS)
+        stride = STRIDE
         if extra:
             p = np.unique(np.concatenate([p, np.ravel(extra)]))
-        pts, stride = p[:, None], STRIDE
+            stride = 1  # the points added are always evaluated (module notes)
+        pts = p[:, None]
     else:
         pts, stride = box_grid(pairs, BOX_POINTS), 1
         if extra:
