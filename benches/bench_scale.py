@@ -135,12 +135,12 @@ def measured(rung: Rung, physics, p: np.ndarray, rng: np.random.Generator) -> lp
     return lpvid.FrfData(p, freqs, G + sigma * noise, sigma)
 
 
-def problem(name: str):
-    """Identification data, validation data, order and basis of a rung."""
+def problem(name: str | Rung):
+    """Identification data, validation data, order and basis of a rung (its name, or a Rung)."""
     if name == "gantry":
         ds = lpvid.datasets.gantry()
         return ds.identification, ds.validation, ds.order, ds.basis, "the built-in gantry"
-    rung = RUNGS[name]
+    rung = RUNGS[name] if isinstance(name, str) else name
     assert rung is not None
     physics = flexible_system(rung)
     rng = np.random.default_rng(1)
@@ -160,7 +160,7 @@ def problem(name: str):
     return data, validation, rung.n, basis, rung.note
 
 
-def run_one(name: str, cone_tol: float | None = None, progress: bool = False) -> dict:
+def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = False) -> dict:
     """One identify() of a rung, with its figures (in this process).
 
     With ``progress``, identify's progress messages go to stderr as they
@@ -190,7 +190,7 @@ def run_one(name: str, cone_tol: float | None = None, progress: bool = False) ->
     socp = [row for r in result.path for row in r.history]
     e = result.entry
     return {
-        "rung": name,
+        "rung": name if isinstance(name, str) else name.name,
         "note": note,
         "free": int(lpvid.free_mask(result.model).sum()),
         "identify_s": total,
