@@ -14,7 +14,11 @@ before its elimination). Prints medians over repetitions of
   matrices per sample (``A(p(t))``, ``C(p(t))``; the hold and its
   derivative in continuous time), the sensitivity recursion with the
   Jacobian rows, the Gram product ``J^T J`` with ``J^T r``, and the
-  elimination of the initial state.
+  elimination of the initial state,
+- the sensitivities' throughput: samples times parameters per second of
+  the matrices per sample and the sensitivity recursion together, against
+  the samples per second of ``lpvid.simulate`` on the same record (the
+  ratio: what one parameter's sensitivity costs in simulations).
 
 The machines are shared and noisy: compare medians.
 
@@ -80,11 +84,20 @@ def main() -> None:
             stages.setdefault(key, []).append(seconds)
 
     core = median_time(gauss_newton, args.repeat)
+    simulation = median_time(lambda: start.simulate(u, p, dt=1e-3), args.repeat)
     print(f"one LM iteration (median of {len(iters)}): {1e3 * np.median(iters):8.1f} ms")
     print(f"fit_time(max_iter=1) call, start and Python included: {1e3 * whole:8.1f} ms")
     print(f"one Gauss-Newton evaluation in the core:              {1e3 * core:8.1f} ms")
     for key in ("simulation_s", "discretisation_s", "sensitivities_s", "gram_s", "schur_s"):
         print(f"  {key[:-2]:<16} {1e3 * np.median(stages[key]):8.1f} ms")
+    sens = np.median(stages["discretisation_s"]) + np.median(stages["sensitivities_s"])
+    per_parameter = T * (k - n) / sens
+    print(f"lpvid.simulate: {1e3 * simulation:8.1f} ms, {T / simulation:.3g} samples/s")
+    print(
+        f"sensitivities (matrices per sample + recursion): {per_parameter:.3g} "
+        f"samples/s per parameter; all {k - n} parameters cost "
+        f"{sens / simulation:.1f} simulations"
+    )
 
 
 if __name__ == "__main__":

@@ -239,3 +239,78 @@ pub fn levenberg_marquardt(
     let v = gn.vnls;
     Ok(finish(theta, v, history, stop))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::Error;
+
+    fn refused(settings: LmSettings) -> (&'static str, String) {
+        match settings.validate() {
+            Err(Error::InvalidArgument { name, message }) => (name, message),
+            other => panic!("expected InvalidArgument, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn settings_refuse_what_no_fit_can_use_and_name_it() {
+        assert!(LmSettings::default().validate().is_ok());
+        let edge = LmSettings {
+            xtol: 0.0,
+            ftol: 0.0,
+            gtol: 0.0,
+            lambda0: f64::MIN_POSITIVE,
+            ..LmSettings::default()
+        };
+        assert!(edge.validate().is_ok());
+        for bad in [-1e-300, f64::NAN, f64::INFINITY] {
+            for name in ["xtol", "ftol", "gtol"] {
+                let mut s = LmSettings::default();
+                match name {
+                    "xtol" => s.xtol = bad,
+                    "ftol" => s.ftol = bad,
+                    _ => s.gtol = bad,
+                }
+                let (got, message) = refused(s);
+                assert_eq!(got, name);
+                assert_eq!(message, format!("expected a finite number >= 0, got {bad}"));
+            }
+        }
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let s = LmSettings {
+                lambda0: bad,
+                ..LmSettings::default()
+            };
+            let (got, message) = refused(s);
+            assert_eq!(got, "lambda0");
+            assert_eq!(message, format!("expected a finite number > 0, got {bad}"));
+        }
+    }
+
+    fn gauss_newton(gram: Vec<f64>) -> GaussNewton {
+        let m = (gram.len() as f64).sqrt() as usize;
+        GaussNewton {
+            vnls: 1.0,
+            gradient: vec![0.0; m],
+            gram,
+        }
+    }
+
+    #[test]
+    fn marquardt_diagonal_is_the_gram_diagonal_floored_at_1e_12_of_its_largest() {
+        // Off-diagonal entries distinct from the diagonal, so that reading the
+        // wrong entry shows; the third diagonal entry lies below the floor.
+        let gram = vec![
+            4.0, 0.5, 0.25, //
+            0.5, 2.0, 0.125, //
+            0.25, 0.125, 1e-20,
+        ];
+        assert_eq!(
+            marquardt_diagonal(&gauss_newton(gram)),
+            vec![4.0, 2.0, 4e-12]
+        );
+        // A Gram matrix of zeros (no parameter has influence) still damps.
+        let zero = marquardt_diagonal(&gauss_newton(vec![0.0; 4]));
+        assert_eq!(zero, vec![1e-312, 1e-312]);
+    }
+}

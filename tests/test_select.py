@@ -116,7 +116,7 @@ def test_dask_cluster_gives_the_thread_result_exactly(grid, quadratic):
     threads = quiet_select(data, orders, degrees, validation=val)
     with (
         distributed.LocalCluster(
-            n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None
+            n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0"
         ) as cluster,
         distributed.Client(cluster) as client,
     ):

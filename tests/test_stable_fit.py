@@ -330,19 +330,19 @@ def test_judged_refit_without_validation_and_the_report_lines():
 
 
 def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
-    # Against an independent run of the same steps: refit on the support (ftol FTOL), the
+    # Against an independent run of the same steps: refit on the support to convergence, the
     # validation V_NLS before and after, kept only beyond REFIT_MARGIN.
-    from lpvid.settings import FTOL
-    from lpvid.trust.refit import REFIT_MARGIN, judged_refit
+    from lpvid.trust.refit import REFIT_MARGIN, dropped_mask, judged_refit
 
     model = lpvid.fit_l21(_start(), peaked, 1e-3, fixed=FIXED).model
     val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
-    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0), ftol=FTOL)
+    fit, held = lpvid.refit(model, peaked, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
+    assert fit.converged
     before, after = lpvid.vnls(model, val), lpvid.vnls(fit.model, val)
     change = f"validation V_NLS {before:.6g} -> {after:.6g}"
     judged = judged_refit(model, peaked, val, FIXED, threshold=1e-3, p_range=(0.0, 1.0))
     np.testing.assert_array_equal(judged.fit.model.theta, fit.model.theta)
-    kept = fit.converged and after < (1 - REFIT_MARGIN) * before
+    kept = after < (1 - REFIT_MARGIN) * before
     assert judged.kept is kept
     if kept:
         assert (
@@ -359,5 +359,56 @@ def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
     assert worse.note.startswith(f"refitted on the support (validation V_NLS {10 * after:.6g} ->")
     better = judged_refit(model, peaked, val, FIXED, validation_vnls=after, threshold=1e-3)
     assert not better.kept and better.model is model and better.fit is not None
+    dropped = lpvid.fixed_mask(model, FIXED) | dropped_mask(model, 1e-3)
+    np.testing.assert_array_equal(better.held, dropped)
+    # A refit stopped at its step limit is judged the same way, and its note says so.
     stopped = judged_refit(model, peaked, val, FIXED, max_iter=1, ftol=0.0, xtol=0.0)
-    assert not stopped.kept and stopped.note.startswith("the refit on the support stopped at")
+    assert not stopped.fit.converged and stopped.fit.n_iter == 1
+    after1 = lpvid.vnls(stopped.fit.model, val)
+    assert stopped.kept is bool(after1 < (1 - REFIT_MARGIN) * before)
+    change = f"validation V_NLS {before:.6g} -> {after1:.6g}"
+    assert stopped.note.endswith(
+        f"({change}; it stopped at its step limit (1 steps), not converged)"
+        + ("" if stopped.kept else "; not kept")
+    )
+
+
+def test_refit_holds_the_groups_dropped_over_its_range_at_zero(peaked):
+    # A(1) is 0.022 of A(0) over [0, 1] and 0.089 over [0, 4] (a domain-free basis); A(2) is
+    # 1e-9 of it, small but not zero: the refit starts from zero there and holds it.
+    from lpvid.trust.refit import dropped_mask, judged_refit
+
+    one = np.zeros((3, 1, 1))
+    one[0] = 1.0
+    m = lpvid.LpvModel([[[0.9]], [[0.02]], [[1e-9]]], 0.1 * one, one, basis=lpvid.Polynomial(2))
+    m = lpvid.LpvModel(m.A, m.B, m.C, basis=m.basis, Ts=1.0)
+    a1, only2 = lpvid.fixed_mask(m, {"A": [1]}), lpvid.fixed_mask(m, {"A": [2]})
+    zero = lpvid.fixed_mask(m, {x: [1, 2] for x in "BCD"})  # the groups at zero
+    a2 = only2 | zero
+    np.testing.assert_array_equal(dropped_mask(m, 0.05, (0.0, 1.0)), a1 | a2)
+    np.testing.assert_array_equal(dropped_mask(m, 0.05, (0.0, 4.0)), a2)
+    at = m.group_norms((0.0, 1.0)).relative[0, 0]  # "at most": a group exactly at it is dropped
+    np.testing.assert_array_equal(dropped_mask(m, at, (0.0, 1.0)), a1 | a2)
+    np.testing.assert_array_equal(dropped_mask(m, np.nextafter(at, 0.0), (0.0, 1.0)), a2)
+    with pytest.raises(ValueError, match=r"^threshold: expected a finite number > 0, got -1.0$"):
+        dropped_mask(m, -1.0)
+    # The default threshold is 1e-6 (A(2) at 1.1e-9 dropped, a group at 1e-5 kept).
+    bigger = m.with_theta(np.where(only2, 1e-5, m.theta))
+    np.testing.assert_array_equal(dropped_mask(bigger, p_range=(0.0, 1.0)), zero)
+    np.testing.assert_array_equal(dropped_mask(m, p_range=(0.0, 1.0)), a2)
+    lti = lpvid.LpvModel([[[0.5]]], [[[1.0]]], [[[1.0]]], Ts=1.0)
+    none = dropped_mask(lti, 0.5)
+    assert none.dtype == bool and none.shape == lti.theta.shape and not none.any()
+    val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
+    for p_range, dropped in [((0.0, 1.0), a1 | a2), ((0.0, 4.0), a2)]:
+        fit, held = lpvid.refit(m, peaked, FIXED, threshold=0.05, p_range=p_range)
+        want = lpvid.fixed_mask(m, FIXED) | dropped
+        np.testing.assert_array_equal(held, want)
+        start = m.with_theta(np.where(dropped, 0.0, m.theta))
+        alone = lpvid.fit_nls(start, peaked, want, p_range=p_range)
+        np.testing.assert_array_equal(fit.model.theta, alone.model.theta)
+        assert np.all(fit.model.theta[dropped] == 0.0)
+        # judged_refit hands its range to the refit and says what it held.
+        judged = judged_refit(m, peaked, val, FIXED, threshold=0.05, p_range=p_range)
+        np.testing.assert_array_equal(judged.fit.model.theta, fit.model.theta)
+        np.testing.assert_array_equal(judged.held, want)

@@ -3,42 +3,8 @@
 //! continuous time, several inputs and outputs, initial states zero, given
 //! and estimated), and its errors.
 
-use lpvid::testing::Lcg;
+use lpvid::testing::{time_model as model, time_records as records};
 use lpvid::{FreeSet, InitialState, Matrix, Objective, Record, Shape, TimeProblem};
-
-/// A random model with stable frozen dynamics along the records below.
-fn model(shape: &Shape, discrete: bool, seed: u64) -> Vec<f64> {
-    let n = shape.n;
-    let mut rng = Lcg(seed);
-    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.25 * rng.next_f64()).collect();
-    let a0 = shape.block(Matrix::A, 0);
-    for k in 0..n {
-        theta[a0.start + k * (n + 1)] += if discrete { 0.4 } else { -1.2 };
-    }
-    theta
-}
-
-/// Records whose scheduling moves fast (basis values change every sample).
-fn records(shape: &Shape, lens: &[usize], seed: u64) -> Vec<Record> {
-    let mut rng = Lcg(seed);
-    lens.iter()
-        .map(|&t| {
-            let psi: Vec<f64> = (0..t)
-                .flat_map(|k| {
-                    let p = (0.37 * k as f64).sin();
-                    let q = 2.0 * rng.next_f64();
-                    (1..=shape.nb).map(move |i| if i % 2 == 1 { p.powi(i as i32) } else { p * q })
-                })
-                .collect();
-            let u: Vec<f64> = (0..t * shape.r).map(|_| 2.0 * rng.next_f64()).collect();
-            let y: Vec<f64> = (0..t * shape.l).map(|_| rng.next_f64()).collect();
-            let sigma: Vec<f64> = (0..t * shape.l)
-                .map(|_| 0.3 + rng.next_f64().abs())
-                .collect();
-            Record::new(shape, u, psi, y, &sigma).unwrap()
-        })
-        .collect()
-}
 
 /// Solve `a x = b` (small, dense, column-major `k x k`) by Gauss-Jordan.
 fn solve(k: usize, a: &[f64], b: &[f64], cols: usize) -> Vec<f64> {

@@ -4,6 +4,8 @@
 //! the state columns (the derivative of the zero-order hold).
 
 use super::hold::Hold;
+#[cfg(test)]
+use super::hold_reference;
 use super::record::Record;
 use crate::error::{Error, Result};
 use crate::layout::{Matrix, Shape};
@@ -83,6 +85,10 @@ pub(crate) struct Frames {
     /// Continuous time with state columns: `dt L(M, e_a e_b^T) z(t)` at
     /// `((a s + b) n + c)` per sample; empty otherwise.
     forcing: Vec<f64>,
+    /// Tests: compute the hold's derivative the way it was computed
+    /// before ([`hold_reference`]).
+    #[cfg(test)]
+    pub reference: bool,
 }
 
 impl Frames {
@@ -109,6 +115,8 @@ impl Frames {
             } else {
                 Vec::new()
             },
+            #[cfg(test)]
+            reference: false,
         })
     }
 
@@ -170,6 +178,10 @@ impl Frames {
             .enumerate()
             .collect();
         let nb = m - 1;
+        #[cfg(test)]
+        let reference = self.reference;
+        #[cfg(not(test))]
+        let reference = false;
         tasks.into_par_iter().try_for_each_init(
             || None,
             |work: &mut Option<Sample>, (task, (((ad, c), psi1), forcing))| {
@@ -183,7 +195,10 @@ impl Frames {
                         None => Coefficients::combine(&coef.a, nn, psi1, adk),
                         Some(dt) => {
                             let f = with_forcing.then(|| &mut forcing[k * fs..(k + 1) * fs]);
-                            let sample = work.get_or_insert_with(|| Sample::new(coef));
+                            let sample = match work {
+                                Some(sample) => sample,
+                                None => work.insert(Sample::new(coef, reference)?),
+                            };
                             // With AVX2 and FMA where the CPU has them.
                             pulp::Arch::new()
                                 .dispatch(|| sample.hold(coef, record, states, dt, t, psi1, adk, f))
@@ -204,23 +219,32 @@ struct Sample {
     hold: Hold,
     a: Vec<f64>,
     b: Vec<f64>,
-    m: Vec<f64>,
-    e: Vec<f64>,
-    z: Vec<f64>,
+    v: Vec<f64>,
+    /// Tests: the reference derivative and its matrices.
+    #[cfg(test)]
+    reference: Option<(hold_reference::Hold, Vec<f64>, Vec<f64>)>,
 }
 
 impl Sample {
-    fn new(coef: &Coefficients) -> Sample {
+    fn new(coef: &Coefficients, reference: bool) -> Result<Sample> {
         let (n, r) = (coef.n, coef.r);
-        let s = n + r;
-        Sample {
-            hold: Hold::new(n, r),
+        #[cfg(not(test))]
+        let _ = reference;
+        Ok(Sample {
+            hold: Hold::new(n)?,
             a: vec![0.0; n * n],
             b: vec![0.0; n * r],
-            m: vec![0.0; s * s],
-            e: vec![0.0; s * s],
-            z: vec![0.0; s],
-        }
+            v: vec![0.0; n],
+            #[cfg(test)]
+            reference: reference.then(|| {
+                let s = n + r;
+                (
+                    hold_reference::Hold::new(n, r),
+                    vec![0.0; s * s],
+                    vec![0.0; s * s],
+                )
+            }),
+        })
     }
 
     /// `Ad(t)` and, when asked, `dt L(M, e_a e_b^T) z(t)` into `forcing`.
@@ -238,30 +262,83 @@ impl Sample {
         forcing: Option<&mut [f64]>,
     ) -> Result<()> {
         let (n, r) = (coef.n, coef.r);
-        let s = n + r;
         Coefficients::combine(&coef.a, n * n, psi1, &mut self.a);
         Coefficients::combine(&coef.b, n * r, psi1, &mut self.b);
-        self.m.fill(0.0);
-        for i in 0..n {
-            for j in 0..n {
-                self.m[i * s + j] = dt * self.a[i * n + j];
-            }
-            for j in 0..r {
-                self.m[i * s + n + j] = dt * self.b[i * r + j];
-            }
+        let u = &record.u()[t * r..(t + 1) * r];
+        #[cfg(test)]
+        if let Some((hold, m, e)) = &mut self.reference {
+            return reference(
+                hold,
+                m,
+                e,
+                (&self.a, &self.b),
+                states,
+                u,
+                dt,
+                t,
+                ad,
+                forcing,
+            );
         }
+        self.a.iter_mut().for_each(|x| *x *= dt);
         match forcing {
-            None => self.hold.compute(&self.m, None, &mut self.e, &mut [])?,
+            None => self.hold.compute(&self.a, None, ad),
             Some(f) => {
-                self.z[..n].copy_from_slice(&states[t * n..(t + 1) * n]);
-                self.z[n..].copy_from_slice(&record.u()[t * r..(t + 1) * r]);
-                self.hold.compute(&self.m, Some(&self.z), &mut self.e, f)?;
-                f.iter_mut().for_each(|v| *v *= dt);
+                for (i, v) in self.v.iter_mut().enumerate() {
+                    *v = dt
+                        * self.b[i * r..(i + 1) * r]
+                            .iter()
+                            .zip(u)
+                            .map(|(p, q)| p * q)
+                            .sum::<f64>();
+                }
+                let x = &states[t * n..(t + 1) * n];
+                self.hold.compute(&self.a, Some((&self.v, x)), ad)?;
+                self.hold.forcing(dt, u, f);
+                Ok(())
             }
         }
-        for i in 0..n {
-            ad[i * n..(i + 1) * n].copy_from_slice(&self.e[i * s..i * s + n]);
-        }
-        Ok(())
     }
+}
+
+/// [`Sample::hold`] the way it was computed before: one Van Loan
+/// exponential per row on `[[A, B], [0, 0]] dt` of size `n + r`.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments)]
+fn reference(
+    hold: &mut hold_reference::Hold,
+    m: &mut [f64],
+    e: &mut [f64],
+    (a, b): (&[f64], &[f64]),
+    states: &[f64],
+    u: &[f64],
+    dt: f64,
+    t: usize,
+    ad: &mut [f64],
+    forcing: Option<&mut [f64]>,
+) -> Result<()> {
+    let (n, r) = (ad.len().isqrt(), u.len());
+    let s = n + r;
+    m.fill(0.0);
+    for i in 0..n {
+        for j in 0..n {
+            m[i * s + j] = dt * a[i * n + j];
+        }
+        for j in 0..r {
+            m[i * s + n + j] = dt * b[i * r + j];
+        }
+    }
+    match forcing {
+        None => hold.compute(m, None, e, &mut [])?,
+        Some(f) => {
+            let mut z = states[t * n..(t + 1) * n].to_vec();
+            z.extend_from_slice(u);
+            hold.compute(m, Some(&z), e, f)?;
+            f.iter_mut().for_each(|v| *v *= dt);
+        }
+    }
+    for i in 0..n {
+        ad[i * n..(i + 1) * n].copy_from_slice(&e[i * s..i * s + n]);
+    }
+    Ok(())
 }

@@ -33,10 +33,14 @@ mod columns;
 mod frames;
 mod gram;
 mod hold;
+#[cfg(test)]
+mod hold_reference;
 mod problem;
 mod record;
 mod schur;
 mod sensitivity;
+#[cfg(test)]
+mod tests;
 
 pub use problem::TimeProblem;
 pub use record::{InitialState, Record};

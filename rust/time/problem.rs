@@ -28,6 +28,9 @@ pub struct TimeProblem {
     initial: InitialState,
     hold: Option<f64>,
     skip: usize,
+    /// Tests: the hold's derivative as computed before.
+    #[cfg(test)]
+    pub(super) reference: bool,
 }
 
 /// A record simulated at one parameter vector.
@@ -94,6 +97,8 @@ impl TimeProblem {
             initial,
             hold,
             skip,
+            #[cfg(test)]
+            reference: false,
         })
     }
 
@@ -230,6 +235,8 @@ impl TimeProblem {
             states,
             residual,
             columns,
+            #[cfg(test)]
+            reference: self.reference,
         }
         .run(times)
     }

@@ -46,6 +46,9 @@ pub(crate) struct Pass<'a> {
     /// Weighted residual, `T x l`.
     pub residual: &'a [f64],
     pub columns: &'a Columns,
+    /// Tests: the hold's derivative as computed before.
+    #[cfg(test)]
+    pub reference: bool,
 }
 
 /// Columns advanced together: one register block of the kernels.
@@ -330,6 +333,10 @@ impl Pass<'_> {
         let mut outs = ByOutput::new(&self.columns.output, l, block)?;
         let forcing = self.hold.is_some() && self.columns.theta_state > 0;
         let mut frames = Frames::new(self.coef, block, forcing)?;
+        #[cfg(test)]
+        {
+            frames.reference = self.reference;
+        }
         let mut sums: Vec<Sums> = (0..threads)
             .map(|_| Sums::new(n_state, &outs))
             .collect::<Result<_>>()?;

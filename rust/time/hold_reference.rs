@@ -1,22 +1,12 @@
-//! The zero-order hold of a frozen continuous-time model and its
-//! derivative with respect to the model's matrices.
+//! The reference for [`super::hold`] (tests only): the zero-order hold's
+//! derivative as it was computed before, one Van Loan exponential per row
+//! `a` on the full matrix `[[A, B], [0, 0]] dt` of size `s = n + r`, with
+//! no balancing.
 //!
-//! With `s = n + r` and `M = [[A, B], [0, 0]] dt`, `exp(M) = [[Ad, Bd],
-//! [0, I]]`, so `x(t+1) = [Ad, Bd] z(t)` with `z = [x; u]` (the
-//! discretisation of [`crate::simulate::simulate_zoh`]). An entry `(a, b)`
-//! of the top `n` rows of `M` moves `x(t+1)` by the Fréchet derivative of
-//! the exponential applied to `z`: `L(M, e_a e_b^T) z`.
-//!
-//! Van Loan's block-triangular exponential gives all of them at once for
-//! one `a`: the upper-right block of `exp([[M, X], [0, M^T]])` is
-//! `int_0^1 exp(M (1 - s)) X exp(M^T s) ds`, and with `X = e_a z^T` its
-//! column `b` is `int exp(M (1 - s)) e_a (exp(M s) z)_b ds = L(M, e_a e_b^T) z`.
-//! The diagonal blocks are the same for every `a`, so the diagonal part of
-//! the Padé approximant and of the squarings is computed once; the
-//! upper-right blocks are linear in `X` and follow with a few small
-//! products each. Scaling and squaring with the [6/6] Padé approximant at
-//! norm at most 1/2, as in the simulation (Higham, 2005; for the Fréchet
-//! derivative, Al-Mohy and Higham, 2009).
+//! With `M = [[A, B], [0, 0]] dt`, `exp(M) = [[Ad, Bd], [0, I]]`, and an
+//! entry `(a, b)` of the top `n` rows of `M` moves `x(t+1)` by
+//! `L(M, e_a e_b^T) z` with `z = [x; u]`: column `b` of the upper-right
+//! block of `exp([[M, e_a z^T], [0, M^T]])`.
 
 // Small matrix kernels index several arrays at once; an index reads best.
 #![allow(clippy::needless_range_loop)]
@@ -320,108 +310,5 @@ impl Hold {
                 }
             }
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::testing::Lcg;
-
-    /// Reference exponential: Taylor series after scaling to norm 1/64,
-    /// then squaring (slow, simple, independent of the Padé code).
-    fn expm_taylor(s: usize, m: &[f64]) -> Vec<f64> {
-        let norm: f64 = m.iter().map(|v| v.abs()).sum();
-        let k = if norm > 1.0 / 64.0 {
-            (norm * 64.0).log2().ceil() as i32
-        } else {
-            0
-        };
-        let x: Vec<f64> = m.iter().map(|v| v * 0.5f64.powi(k)).collect();
-        let mut sum = vec![0.0; s * s];
-        let mut term = vec![0.0; s * s];
-        for i in 0..s {
-            sum[i * s + i] = 1.0;
-            term[i * s + i] = 1.0;
-        }
-        let mut next = vec![0.0; s * s];
-        for j in 1..25 {
-            mul(s, &term, &x, &mut next);
-            for (t, v) in term.iter_mut().zip(&next) {
-                *t = v / j as f64;
-            }
-            for (a, t) in sum.iter_mut().zip(&term) {
-                *a += t;
-            }
-        }
-        for _ in 0..k {
-            mul(s, &sum, &sum, &mut next);
-            std::mem::swap(&mut sum, &mut next);
-        }
-        sum
-    }
-
-    /// A hold matrix `[[A, B], [0, 0]] dt` of size `n + r`.
-    fn hold_matrix(n: usize, r: usize, scale: f64, seed: u64) -> Vec<f64> {
-        let s = n + r;
-        let mut rng = Lcg(seed);
-        let mut m = vec![0.0; s * s];
-        for i in 0..n {
-            for j in 0..s {
-                m[i * s + j] = scale * rng.next_f64();
-            }
-        }
-        m
-    }
-
-    #[test]
-    fn exponential_and_derivatives_match_a_taylor_reference() {
-        // Small, moderate (no squaring / a few) and large norms.
-        for (n, r, scale) in [(1, 1, 0.3), (3, 2, 1.0), (4, 1, 6.0), (6, 2, 20.0)] {
-            let s = n + r;
-            let m = hold_matrix(n, r, scale, 7 + n as u64);
-            let mut rng = Lcg(11);
-            let z: Vec<f64> = (0..s).map(|_| rng.next_f64()).collect();
-            let mut hold = Hold::new(n, r);
-            let mut e = vec![0.0; s * s];
-            let mut forcing = vec![0.0; n * s * n];
-            hold.compute(&m, Some(&z), &mut e, &mut forcing).unwrap();
-            let want = expm_taylor(s, &m);
-            let big = want.iter().fold(1.0f64, |a, v| a.max(v.abs()));
-            for (p, q) in e.iter().zip(&want) {
-                assert!((p - q).abs() <= 1e-10 * big, "exp: {p} vs {q}");
-            }
-            // L(M, E) from the exponential of [[M, E], [0, M]].
-            let s2 = 2 * s;
-            for a in 0..n {
-                for b in 0..s {
-                    let mut big_m = vec![0.0; s2 * s2];
-                    for i in 0..s {
-                        for j in 0..s {
-                            big_m[i * s2 + j] = m[i * s + j];
-                            big_m[(s + i) * s2 + s + j] = m[i * s + j];
-                        }
-                    }
-                    big_m[a * s2 + s + b] = 1.0;
-                    let ex = expm_taylor(s2, &big_m);
-                    for cc in 0..n {
-                        let want: f64 = (0..s).map(|k| ex[cc * s2 + s + k] * z[k]).sum();
-                        let got = forcing[(a * s + b) * n + cc];
-                        assert!(
-                            (got - want).abs() <= 1e-10 * big,
-                            "n={n} a={a} b={b} c={cc}: {got} vs {want}"
-                        );
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn non_finite_matrices_are_an_error() {
-        let mut hold = Hold::new(1, 1);
-        let mut e = vec![0.0; 4];
-        let m = [f64::NAN, 0.0, 0.0, 0.0];
-        assert!(hold.compute(&m, None, &mut e, &mut []).is_err());
     }
 }
