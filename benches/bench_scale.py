@@ -14,8 +14,12 @@ what it held before identify and lpvid's estimate of identify's peak
 Each rung runs in a fresh process (peak memory is per rung). The machines
 are shared and noisy: compare medians over --repeat runs.
 
+The rungs n32 (4x4) and grid81 (two scheduling parameters on a 9 x 9 grid,
+total-degree-2 basis) are the sizes users bring next; n32 takes long (run
+it alone, with --progress to see its stages as they come).
+
 Run: python benches/bench_scale.py [--rungs gantry n10 ...] [--repeat 3] [--json out.json]
-[--cone-tol 1e-6]
+[--cone-tol 1e-6] [--progress]
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ class Rung:
     points: int
     lines: int
     note: str
+    params: int = 1  # scheduling parameters: 2 puts the points on a square grid
 
 
 RUNGS = {
@@ -56,6 +61,11 @@ RUNGS = {
     "points25": Rung("points25", 6, 2, 1, 4, 25, 300, "gantry size, N=25, F=300"),
     "lines3000": Rung("lines3000", 6, 2, 1, 4, 5, 3000, "gantry size, N=5, F=3000"),
     "n24": Rung("n24", 24, 3, 3, 3, 9, 1000, "n=24, 3x3, Nb=3, N=9, F=1000"),
+    "n32": Rung("n32", 32, 4, 4, 4, 9, 500, "n=32, 4x4, Nb=4, N=9, F=500"),
+    # 9 x 9 points in (s1, s2), total degree 2 (Nb = 5: s1, s2, s1^2, s1 s2, s2^2)
+    "grid81": Rung(
+        "grid81", 8, 2, 2, 2, 81, 300, "n=8, 2x2, 2 parameters, degree 2, N=81 (9x9), F=300", 2
+    ),
 }
 
 
@@ -66,6 +76,9 @@ def flexible_system(rung: Rung, seed: int = 0):
     (a_k up to +-25 %), damping 1-3 %, and input and output shapes that
     change linearly with s. Returns ``physics(s) -> (A, B, C, D)`` in
     continuous time (positions and velocities of the modes as outputs mix).
+    With two scheduling parameters ``s = (s1, s2)``: ``w_k = w_k0 (1 + a_k
+    s1 + a2_k s2)`` and shapes linear in both, so that A, B and C are of
+    total degree 2 (what the rung's basis represents).
     """
     rng = np.random.default_rng(seed)
     modes = rung.n // 2
@@ -78,19 +91,29 @@ def flexible_system(rung: Rung, seed: int = 0):
     cout0 = rng.standard_normal((rung.l, modes))
     cout1 = 0.3 * rng.standard_normal((rung.l, modes))
     mix = rng.uniform(0.2, 1.0, (rung.l, modes))
+    if rung.params == 2:  # drawn after the others: the one-parameter rungs stay as they were
+        a2 = rng.uniform(-0.25, 0.25, modes)
+        bin2 = 0.3 * rng.standard_normal((modes, rung.r))
+        cout2 = 0.3 * rng.standard_normal((rung.l, modes))
 
-    def physics(s: float):
+    def physics(p):
+        s, t = (float(p), 0.0) if rung.params == 1 else (float(p[0]), float(p[1]))
         A = np.zeros((rung.n, rung.n))
         B = np.zeros((rung.n, rung.r))
         C = np.zeros((rung.l, rung.n))
         for k in range(modes):
-            w = w0[k] * (1 + a[k] * s + b[k] * s * s)
+            if rung.params == 1:
+                w = w0[k] * (1 + a[k] * s + b[k] * s * s)
+                bk, ck = bin0[k] + s * bin1[k], cout0[:, k] + s * cout1[:, k]
+            else:
+                w = w0[k] * (1 + a[k] * s + a2[k] * t)
+                bk = bin0[k] + s * bin1[k] + t * bin2[k]
+                ck = cout0[:, k] + s * cout1[:, k] + t * cout2[:, k]
             i = 2 * k
             A[i : i + 2, i : i + 2] = [[0.0, 1.0], [-(w**2), -2 * zeta[k] * w]]
-            B[i + 1] = (bin0[k] + s * bin1[k]) * w
-            c = cout0[:, k] + s * cout1[:, k]
-            C[:, i] = c * w * (1 - mix[:, k])
-            C[:, i + 1] = c * mix[:, k]
+            B[i + 1] = bk * w
+            C[:, i] = ck * w * (1 - mix[:, k])
+            C[:, i + 1] = ck * mix[:, k]
         return A, B, C, np.zeros((rung.l, rung.r))
 
     return physics
@@ -105,47 +128,69 @@ def measured(rung: Rung, physics, p: np.ndarray, rng: np.random.Generator) -> lp
     """
     freqs = np.linspace(10.0, 400.0, rung.lines)
     z = 2j * np.pi * freqs
-    G = np.stack([lpvid.frozen.lti_frf(*physics(float(s)), z) for s in p])
+    G = np.stack([lpvid.frozen.lti_frf(*physics(s), z) for s in p])
     rms = np.sqrt(np.mean(np.abs(G) ** 2, axis=1, keepdims=True))
     sigma = np.broadcast_to(0.01 * rms, G.shape)
     noise = (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
     return lpvid.FrfData(p, freqs, G + sigma * noise, sigma)
 
 
-def problem(name: str):
-    """Identification data, validation data, order and basis of a rung."""
+def problem(name: str | Rung):
+    """Identification data, validation data, order and basis of a rung (its name, or a Rung)."""
     if name == "gantry":
         ds = lpvid.datasets.gantry()
         return ds.identification, ds.validation, ds.order, ds.basis, "the built-in gantry"
-    rung = RUNGS[name]
+    rung = RUNGS[name] if isinstance(name, str) else name
     assert rung is not None
     physics = flexible_system(rung)
     rng = np.random.default_rng(1)
-    p = np.linspace(-1.0, 1.0, rung.points)
-    mid = (p[:-1] + p[1:]) / 2
-    val = mid[:: max(1, mid.size // 4)][:4]
+    if rung.params == 1:
+        p = np.linspace(-1.0, 1.0, rung.points)
+        mid = (p[:-1] + p[1:]) / 2
+        val = mid[:: max(1, mid.size // 4)][:4]
+        basis = lpvid.Polynomial(rung.nb, domain=(-1.0, 1.0))
+    else:
+        side = np.linspace(-1.0, 1.0, round(np.sqrt(rung.points)))
+        p = np.array([(s, t) for s in side for t in side])
+        mid = (side[:-1] + side[1:]) / 2  # 4 cell centres spread over the square
+        val = np.array([(mid[1], mid[2]), (mid[2], mid[5]), (mid[5], mid[1]), (mid[6], mid[6])])
+        basis = lpvid.Polynomial(rung.nb, domain=[(-1.0, 1.0), (-1.0, 1.0)])
     data = measured(rung, physics, p, rng)
     validation = measured(rung, physics, val, rng)
-    basis = lpvid.Polynomial(rung.nb, domain=(-1.0, 1.0))
     return data, validation, rung.n, basis, rung.note
 
 
-def run_one(name: str, cone_tol: float | None = None) -> dict:
-    """One identify() of a rung, with its figures (in this process)."""
+def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = False) -> dict:
+    """One identify() of a rung, with its figures (in this process).
+
+    With ``progress``, identify's progress messages go to stderr as they
+    come, each with the seconds since identify started.
+    """
     data, validation, n, basis, note = problem(name)
     settings = None if cone_tol is None else lpvid.L21Settings(max_outer=10, cone_tol=cone_tol)
     before_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     estimate_mb = lpvid.memory.pipeline_memory(data, n, basis)[0] / 2**20
     t0 = time.perf_counter()
+
+    def say(message: str) -> None:
+        print(f"[{time.perf_counter() - t0:8.1f} s] {message}", file=sys.stderr, flush=True)
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = lpvid.identify(data, n, basis, validation=validation, settings=settings)
+        result = lpvid.identify(
+            data,
+            n,
+            basis,
+            validation=validation,
+            settings=settings,
+            progress=say if progress else None,
+        )
     total = time.perf_counter() - t0
     lm = [row for c in result.candidates if c.fit for row in c.fit.history]
     socp = [row for r in result.path for row in r.history]
     e = result.entry
     return {
-        "rung": name,
+        "rung": name if isinstance(name, str) else name.name,
         "note": note,
         "free": int(lpvid.free_mask(result.model).sum()),
         "identify_s": total,
@@ -216,16 +261,22 @@ def report(runs: list[dict]) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rungs", nargs="+", default=list(RUNGS), choices=list(RUNGS))
+    default = [r for r in RUNGS if r != "n32"]  # n32 only when asked: it takes long
+    parser.add_argument("--rungs", nargs="+", default=default, choices=list(RUNGS))
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--json", help="write every run's figures to this file")
     parser.add_argument(
         "--cone-tol", type=float, help="L21Settings.cone_tol of the path (default its default)"
     )
+    parser.add_argument(
+        "--progress",
+        action="store_true",
+        help="print identify's progress messages (stderr), with the time since it started",
+    )
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
-        print(json.dumps(run_one(args.one, args.cone_tol)))
+        print(json.dumps(run_one(args.one, args.cone_tol, args.progress)))
         return
     everything = {}
     for name in args.rungs:
@@ -233,8 +284,10 @@ def main() -> None:
         for _ in range(args.repeat):
             out = subprocess.run(
                 [sys.executable, __file__, "--one", name]
-                + ([] if args.cone_tol is None else ["--cone-tol", str(args.cone_tol)]),
-                capture_output=True,
+                + ([] if args.cone_tol is None else ["--cone-tol", str(args.cone_tol)])
+                + (["--progress"] if args.progress else []),
+                stdout=subprocess.PIPE,
+                stderr=None if args.progress else subprocess.PIPE,
                 text=True,
                 check=True,
             )

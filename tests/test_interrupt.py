@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -170,3 +171,44 @@ def test_ctrl_c_in_a_terminal_stops_the_demo_and_its_figure_workers(tmp_path):
     assert err.strip().splitlines()[-1] == "lpvid demo: interrupted"
     assert "Traceback" not in err and "leaked" not in err, err
     assert not (out / "report.md").exists() and not (out / "model.json").exists()
+
+
+class SignallingPool(ThreadPoolExecutor):
+    """Threads whose first piece of the race sends SIGINT, then waits for its stop flag.
+
+    Keeps every future it handed out, to check that none runs on.
+    """
+
+    def __init__(self) -> None:
+        super().__init__(2)
+        self.futures: list = []
+        self.fired = False
+
+    def submit(self, fn, /, *args, **kwargs):
+        stop, piece, piece_args = args
+        if not self.fired and piece.__name__ == "_advanced":
+            self.fired = True
+
+            def first(*a):
+                os.kill(os.getpid(), signal.SIGINT)
+                stop.wait(timeout=30)  # set once the main thread has the KeyboardInterrupt
+                return piece(*a)
+
+            args = (stop, first, piece_args)
+        future = super().submit(fn, *args, **kwargs)
+        self.futures.append(future)
+        return future
+
+
+def test_ctrl_c_stops_identify_and_the_fits_on_its_threads(python_sigint, gantry):
+    ds, _ = gantry
+    with SignallingPool() as pool:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+            with pytest.raises(KeyboardInterrupt):
+                lpvid.identify(ds.identification, ds.order, ds.basis, executor=pool)
+        assert pool.fired
+        # nothing runs on: every piece has ended (or never started) once identify raised
+        assert all(f.done() for f in pool.futures)
+        stopped = [f for f in pool.futures if not f.cancelled() and f.exception() is not None]
+        assert stopped and all(isinstance(f.exception(), KeyboardInterrupt) for f in stopped)

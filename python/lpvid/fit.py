@@ -15,6 +15,7 @@ import numpy as np
 
 from lpvid import _core
 from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._spread import stop_flag
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
 from lpvid.layout import free_mask
@@ -41,9 +42,24 @@ PIN_WEIGHT = 1.0
 
 
 def _monitor(callback: Callback | None) -> Callback | None:
-    """The user's callback, with every step logged at DEBUG on the ``lpvid`` logger."""
+    """The user's callback, with every step logged at DEBUG on the ``lpvid`` logger.
+
+    In a piece of :func:`lpvid.identify`'s work running on a thread
+    (:mod:`lpvid._spread`), where Ctrl-C never arrives, a set stop flag
+    stops the fit at its next step as Ctrl-C would.
+    """
     if callback is not None and not callable(callback):
         raise TypeError(f"callback: expected a callable, got {type(callback).__name__}")
+    stop = stop_flag()
+    if stop is not None:
+        inner = callback
+
+        def stoppable(row: dict[str, Any]) -> Any:
+            if stop.is_set():
+                raise KeyboardInterrupt("stopped: the run this fit belongs to was interrupted")
+            return None if inner is None else inner(row)
+
+        callback = stoppable
     if not logger.isEnabledFor(logging.DEBUG):
         return callback
 

@@ -103,8 +103,11 @@ class IdentifyResult:
         unregularised fit, the path, V_NLS and the noise floors of
         :attr:`entries` are those of both costs summed.
     timings : dict
-        Seconds per stage: ``"local_s"``, ``"smile_s"``, ``"nls_s"``,
-        ``"path_s"``, ``"total_s"``.
+        Seconds per stage: ``"local_s"`` (the local models), ``"smile_s"``
+        (the initial models and the race of the starts), ``"nls_s"`` (the
+        chosen start's fits, within ``"smile_s"``), ``"path_s"``,
+        ``"finish_s"`` (the refit, the covariance and the stability of the
+        model returned), ``"total_s"``.
     refit : FitResult or None
         The chosen model refitted by Levenberg-Marquardt with its dropped
         groups fixed at zero (``identify(..., refit=True)``, for a chosen

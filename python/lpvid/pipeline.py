@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
+from lpvid._spread import check_executor
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
 from lpvid.capacity import check_order
@@ -150,6 +152,7 @@ def identify(
     time_data: Any = None,
     stable: bool = False,
     refit: bool = True,
+    executor: Executor | None = None,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
@@ -236,6 +239,24 @@ def identify(
         with its dropped groups fixed at zero (removes the shrinkage of the
         l2,1 penalty) and return the refit when it validates better
         (:attr:`IdentifyResult.refitted`). False: never refit.
+    executor : concurrent.futures.Executor, optional
+        Where the independent fits run, each one task: the local model of
+        every scheduling point, the runners of every round of the race of
+        the starts, and (on an executor of other processes, such as a Dask
+        cluster) a guarded path's pinned fit beside the warm one at every
+        gamma, dropped when not needed (on threads here it would take the
+        warm fit's cores). The results are taken in a fixed order, never as
+        they finish, so the run is the same to the last bit: the same
+        local models, the same starts kept and dropped, the same path and
+        model. Default: here, one after the other. The core already spreads
+        every fit over the cores, and threads gained nothing on a 2-core
+        machine (``benches/bench_executor.py``: 0.95-1.06 of the time per
+        stage on the gantry, n = 10 and n = 16). A Dask cluster:
+        ``distributed.Client(address).get_executor()`` (its workers need
+        lpvid; the data, models and fits are pickled to them). Tasks on
+        threads here run at once, each fit with its own memory: the check
+        before any work (MemoryError below) counts one fit, and every fit
+        checks again as it starts.
 
     Returns
     -------
@@ -252,7 +273,10 @@ def identify(
     Raises
     ------
     KeyboardInterrupt
-        When Ctrl-C stops one of the fits.
+        When Ctrl-C stops one of the fits. With an executor, the tasks not
+        started are cancelled and the fits running on threads of this
+        process stopped (at their next step) before it is raised; tasks in
+        other processes finish there and are dropped.
     ValueError
         On bad arguments, and when the start chosen on the FRFs diverges
         along a time record (the message names the record and the sample).
@@ -284,6 +308,7 @@ def identify(
     gs = check_gammas(gammas)
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
     time_cost = None if time_data is None else check_time_data(data, time_data)
+    executor = check_executor(executor)
     l21 = L21Settings.of(settings if settings is not None else L21Settings(max_outer=10))
     if data.n_points < len(basis) + 1:
         raise ValueError(
@@ -300,7 +325,7 @@ def identify(
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
     t = time.perf_counter()
-    local = identify_lti(data, n, strictly_proper=strictly_proper(fixed))
+    local = identify_lti(data, n, strictly_proper=strictly_proper(fixed), executor=executor)
     timings["local_s"] = time.perf_counter() - t
 
     _say(progress, f"initial models ({', '.join(routes)}), each refined by fit_nls")
@@ -315,6 +340,7 @@ def identify(
         forms=forms,
         local=local,
         ftol=l21.ftol,
+        executor=executor,
     )
     if not candidates:
         raise ValueError("no initial model could be built for these local models")
@@ -352,11 +378,13 @@ def identify(
         stable=stable,
         time_cost=time_cost,
         say=lambda message: _say(progress, message),
+        executor=executor,
     )
     path = PathResult(results)
     timings["path_s"] = time.perf_counter() - t
     chosen, reason = _choose(entries, tol)
     e = entries[chosen]
+    t = time.perf_counter()
     done = finish(
         e.model,
         e.gamma,
@@ -376,6 +404,7 @@ def identify(
         if done.refit is None
         else path_entry(e.gamma, done.refit, data, validation, l21.threshold, time_cost)
     )
+    timings["finish_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(
         model=done.model,

@@ -22,6 +22,7 @@ import numpy as np
 
 from lpvid._capture import collected
 from lpvid._checks import positive_float, positive_int
+from lpvid._spread import check_executor
 from lpvid._threads import single_blas
 from lpvid.basis import Basis, Polynomial
 from lpvid.capacity import zero_model
@@ -364,7 +365,10 @@ def select(
         Where the runs go. Default: a thread pool with one thread per core
         (the fits release the GIL). A Dask cluster:
         ``distributed.Client(address).get_executor()``; its workers need
-        lpvid, and everything sent pickles (data, bases, results).
+        lpvid, and everything sent pickles (data, bases, results). The
+        pairs already run side by side: each identify run gets no
+        executor of its own (its fits run one after the other in its task;
+        see :func:`lpvid.identify`'s ``executor``).
     tolerance : float
         Relative slack on the best validation (or held-out) V_NLS; also
         passed to every identify run.
@@ -407,11 +411,7 @@ def select(
     ns, bs = _orders(orders), _bases(bases, data)
     check_gammas(gammas)
     tol = positive_float(tolerance, "tolerance", allow_zero=True)
-    if executor is not None and not isinstance(executor, Executor):
-        raise TypeError(
-            f"executor: expected a concurrent.futures.Executor (e.g. "
-            f"distributed.Client(...).get_executor()), got {type(executor).__name__}"
-        )
+    executor = check_executor(executor)
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable, got {type(progress).__name__}")
     pairs = [(n, b) for n in ns for b in bs]

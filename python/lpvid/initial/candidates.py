@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,7 +33,7 @@ from lpvid.initial.globalstart import (
 )
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
-from lpvid.initial.race import Runner, Stage, race
+from lpvid.initial.race import Runner, Stage, race, run_out
 from lpvid.initial.smile import smile_candidates
 from lpvid.judge import dependence
 from lpvid.layout import fixed_mask, strictly_proper
@@ -188,6 +189,7 @@ def initial_candidates(
     max_iter: int = 100,
     ftol: float = FTOL,
     halving: bool = True,
+    executor: Executor | None = None,
 ) -> list[Candidate]:
     """Initial LPV models by several routes, each refined by :func:`lpvid.fit_nls`.
 
@@ -234,6 +236,11 @@ def initial_candidates(
         a few steps, the worse half is dropped, the rest twice as many, and
         so on, until the best few are refined to convergence (default).
         False refines every start to convergence.
+    executor : concurrent.futures.Executor, optional
+        Where the independent fits run (the local models when they are
+        identified here, the runners of every round of the race, the
+        starts without the race): see :func:`lpvid.identify`. Default
+        here, one after the other; the candidates are the same either way.
 
     Returns
     -------
@@ -262,7 +269,7 @@ def initial_candidates(
     proper = strictly_proper(fixed)
     t = time.perf_counter()
     if local is None:
-        local = identify_lti(data, n, strictly_proper=proper)
+        local = identify_lti(data, n, strictly_proper=proper, executor=executor)
     elif not isinstance(local, LocalModels):
         raise TypeError(f"local: expected LocalModels, got {type(local).__name__}")
     local_s = time.perf_counter() - t
@@ -322,11 +329,9 @@ def initial_candidates(
                 runners.append((runner, shared))
                 globals_.append((runner, const, stages))
     if halving:
-        race([r for r, _ in runners], data, validation)
+        race([r for r, _ in runners], data, validation, executor=executor)
     else:
-        for r, _ in runners:
-            while not r.done:
-                r.advance(data, max_iter)
+        run_out([r for r, _ in runners], data, executor)
     for runner, const, stages in globals_:
         m = finish_global(runner, const, stages)
         steps = "; ".join(

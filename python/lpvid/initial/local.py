@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 
 from lpvid._checks import positive_int
+from lpvid._spread import Spread
 from lpvid._threads import single_blas
 from lpvid.basis import Polynomial
 from lpvid.cost import vnls_value as vnls
@@ -33,6 +35,7 @@ def identify_lti(
     n_rows: int | None = None,
     max_iter: int = 100,
     continuation: bool | str = False,
+    executor: Executor | None = None,
 ) -> LocalModels:
     """Identify one LTI state-space model per scheduling point from its FRF.
 
@@ -69,6 +72,10 @@ def identify_lti(
         (:func:`lpvid.initial.continue_local`), so that the models stay on
         one branch: always (True), never (False, the default), or when
         :func:`lpvid.consistency` flags a point (``"auto"``).
+    executor : concurrent.futures.Executor, optional
+        Where the points' models are identified, each point one task (see
+        :func:`lpvid.identify`); default here, one after the other. The
+        models are the same either way. The continuation runs here.
 
     Returns
     -------
@@ -104,24 +111,13 @@ def identify_lti(
     if continuation is not False and not refine:
         raise ValueError("continuation: a continuation refines the models; it needs refine=True")
     rows = _row_choices(n, F, r, n_rows)
-    basis = Polynomial(0, n_params=data.n_params)
-    fixed = {"D": True} if strictly_proper else None
-    models, initial, costs, conv = [], [], [], []
-    for q in range(data.n_points):
-        point = data.subset([q])
-        best = None
-        for start in _starts(point, n, rows, basis, stable, strictly_proper):
-            model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
-            # Prefer stable models when asked, then the lowest V_NLS.
-            key = (stable and not is_stable(model), vnls(model, point))
-            if best is None or key < best[0]:
-                best = (key, model, ok, start)
-        assert best is not None
-        (_, cost), model, ok, start = best
-        models.append(model)
-        costs.append(cost)
-        conv.append(ok)
-        initial.append(start)
+    how = (n, rows, stable, strictly_proper, refine, max_iter)
+    points = [(data.subset([q]), *how) for q in range(data.n_points)]
+    found = Spread(executor).map(_point_model, points)
+    models = [m for m, _, _, _ in found]
+    costs = [c for _, c, _, _ in found]
+    conv = [ok for _, _, ok, _ in found]
+    initial = [s for _, _, _, s in found]
     floor = np.full(data.n_points, F * l * r)
     plain = LocalModels(models, data.p, data.freqs_hz, costs, floor, conv, initial)
     if continuation is False or data.n_points < 2:
@@ -134,6 +130,35 @@ def identify_lti(
     return continue_local(
         data, plain, strictly_proper=strictly_proper, max_iter=max_iter, diagnosis=diagnosis
     )
+
+
+@single_blas
+def _point_model(
+    point: FrfData,
+    n: int,
+    rows: list[int | None],
+    stable: bool,
+    strictly_proper: bool,
+    refine: bool,
+    max_iter: int,
+) -> tuple[LpvModel, float, bool, LpvModel]:
+    """The local model of one point: its V_NLS, whether its refinement converged, its start.
+
+    Every subspace start is refined and the best kept: stable ones first
+    when ``stable``, then the lowest V_NLS. (A piece of
+    :func:`identify_lti`'s work: BLAS stays on one thread wherever it runs.)
+    """
+    basis = Polynomial(0, n_params=point.n_params)
+    fixed = {"D": True} if strictly_proper else None
+    best = None
+    for start in _starts(point, n, rows, basis, stable, strictly_proper):
+        model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
+        key = (stable and not is_stable(model), vnls(model, point))
+        if best is None or key < best[0]:
+            best = (key, model, ok, start)
+    assert best is not None
+    (_, cost), model, ok, start = best
+    return model, cost, ok, start
 
 
 def _row_choices(n: int, n_lines: int, n_inputs: int, n_rows: int | None) -> list[int | None]:

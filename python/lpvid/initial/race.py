@@ -15,12 +15,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._spread import Spread
 from lpvid.cost import vnls_value as vnls
 from lpvid.data import FrfData
 from lpvid.fit import fit_nls, raise_if_interrupted
@@ -31,7 +33,7 @@ from lpvid.results import FitResult
 from lpvid.schedule import between_points
 from lpvid.settings import FTOL
 
-__all__ = ["HOPELESS", "ROUNDS", "Runner", "Stage", "race"]
+__all__ = ["HOPELESS", "ROUNDS", "Runner", "Stage", "race", "run_out"]
 
 #: Levenberg-Marquardt steps each runner still in the race gets per round,
 #: before the worse half is dropped; the last few are then refined to
@@ -204,20 +206,50 @@ def _rank(
     return keys
 
 
+def _advanced(runner: Runner, data: FrfData, budget: int | None) -> Runner:
+    """``runner`` after up to ``budget`` more steps (None: to the end of its stages)."""
+    if budget is None:
+        while not runner.done:
+            runner.advance(data, runner.max_iter)
+    else:
+        runner.advance(data, budget)
+    return runner
+
+
+def _advance(
+    spread: Spread,
+    runners: list[Runner],
+    data: FrfData,
+    budget: int | None,
+    step: Callable[[Runner], None] | None,
+) -> None:
+    """Advance the runners (each independent of the others) on ``spread``, in place."""
+    moved = spread.map(_advanced, [(r, data, budget) for r in runners])
+    for r, m in zip(runners, moved, strict=True):
+        if m is not r:  # a copy from another process
+            vars(r).update(vars(m))
+        if step is not None:
+            step(r)
+
+
+def run_out(runners: Sequence[Runner], data: FrfData, executor: Executor | None = None) -> None:
+    """Refine every runner to the end of its stages, no race (each one task on ``executor``)."""
+    _advance(Spread(executor), [r for r in runners if not r.done], data, None, None)
+
+
 def _drop_hopeless(
-    runners: list[Runner], data: FrfData, step: Callable[[Runner], None] | None
+    spread: Spread, runners: list[Runner], data: FrfData, step: Callable[[Runner], None] | None
 ) -> list[Runner]:
     """The runners that are not hopeless (see :data:`HOPELESS`); the others take a step and drop."""
     costs = [r.current_vnls(data) for r in runners]
     best = min((c for c in costs if math.isfinite(c)), default=math.inf)
     if not math.isfinite(best):
         return runners  # no start to compare with
-    kept = []
-    for r, cost in zip(runners, costs, strict=True):
-        if cost <= HOPELESS * best:
-            kept.append(r)
-            continue
-        r.advance(data, 1)
+    ok = [cost <= HOPELESS * best for cost in costs]  # False for NaN
+    kept = [r for r, k in zip(runners, ok, strict=True) if k]
+    hopeless = [r for r, k in zip(runners, ok, strict=True) if not k]
+    _advance(spread, hopeless, data, 1, None)
+    for r in hopeless:
         if not r.done:
             r.dropped = r.steps
         if step is not None:
@@ -233,6 +265,7 @@ def race(
     rounds: Sequence[int] = ROUNDS,
     keep: int = 2,
     step: Callable[[Runner], None] | None = None,
+    executor: Executor | None = None,
 ) -> list[Runner]:
     """Successive halving over the runners; returns them all (dropped ones marked).
 
@@ -256,14 +289,17 @@ def race(
         Fewest runners refined to convergence.
     step : callable, optional
         Called with each runner after each of its rounds (progress).
+    executor : concurrent.futures.Executor, optional
+        Where the runners of a round run, each one task (see
+        :func:`lpvid.identify`); default here, one after the other. The
+        runners are taken back in their order and ranked here: the race
+        keeps and drops the same runners either way.
     """
+    spread = Spread(executor)
     entered = [r for r in runners if not r.done]
-    alive = _drop_hopeless(entered, data, step)
+    alive = _drop_hopeless(spread, entered, data, step)
     for round_, budget in enumerate(rounds):
-        for r in alive:
-            r.advance(data, budget)
-            if step is not None:
-                step(r)
+        _advance(spread, alive, data, budget, step)
         keys = sorted(_rank(alive, data, validation))
         finite = [k for k in keys if math.isfinite(k[3])] or keys
         counted = entered if round_ == 0 else alive  # the hopeless count in the first round
@@ -275,9 +311,5 @@ def race(
         alive = [r for k, r in enumerate(alive) if k in stay and not r.done]
         if not alive:
             break
-    for r in alive:
-        while not r.done:
-            r.advance(data, r.max_iter)
-        if step is not None:
-            step(r)
+    _advance(spread, alive, data, None, step)
     return list(runners)

@@ -1,0 +1,150 @@
+"""The independent work of one identify run on an executor, taken back in a fixed order.
+
+:func:`lpvid.identify` hands the pieces of its work that do not depend on
+one another (the local model of every scheduling point, the runners of one
+round of the race of the starts, the warm and the pinned fit at one gamma)
+to a :class:`concurrent.futures.Executor` when it is given one, and runs
+them here, one after the other, when not. Results are taken in the order
+the pieces were handed out, never as they finish, and the core's fits are
+the same to the last bit on any number of threads: the run is the same
+wherever the pieces ran.
+
+Ctrl-C reaches the main thread only, and the core notices it there alone.
+When the wait for a piece is interrupted (or a piece fails), every piece
+still out is dropped: those not started are cancelled; those running on a
+thread of this process have their stop flag set, which their fits notice
+at the next step as they notice Ctrl-C (:func:`stop_flag`, read by the
+fitting functions), and the wait goes on until they have stopped, so that
+nothing runs on once the KeyboardInterrupt is raised. Pieces running in
+other processes (a Dask cluster) cannot be stopped from here: they finish
+there and their results are dropped.
+
+A piece's warnings are collected where it runs (:func:`lpvid._capture.collected`)
+and raised again here when its result is taken.
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
+from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import Any
+
+from lpvid._capture import collected
+
+__all__ = ["Piece", "Spread", "check_executor", "stop_flag"]
+
+_STOP: ContextVar[threading.Event | None] = ContextVar("lpvid_stop", default=None)
+
+
+def stop_flag() -> threading.Event | None:
+    """The stop flag of the piece running in this thread (None outside a piece)."""
+    return _STOP.get()
+
+
+def check_executor(executor: Any) -> Executor | None:
+    """``executor`` checked: None or a :class:`concurrent.futures.Executor`."""
+    if executor is not None and not isinstance(executor, Executor):
+        raise TypeError(
+            f"executor: expected a concurrent.futures.Executor (e.g. "
+            f"distributed.Client(...).get_executor()), got {type(executor).__name__}"
+        )
+    return executor
+
+
+def _run(
+    stop: threading.Event | None, fn: Callable[..., Any], args: tuple[Any, ...]
+) -> tuple[Any, list[tuple[type[Warning], str]]]:
+    """Run one piece where the executor put it, with its stop flag and its warnings collected."""
+    token = _STOP.set(stop)
+    try:
+        with collected() as caught:
+            out = fn(*args)
+        return out, list(caught)
+    finally:
+        _STOP.reset(token)
+
+
+@dataclass
+class Piece:
+    """One piece of work handed out (or, without an executor, still to be run here)."""
+
+    fn: Callable[..., Any]
+    args: tuple[Any, ...]
+    future: Future[Any] | None = None
+    stop: threading.Event | None = None
+
+
+class Spread:
+    """Pieces of work on ``executor`` (None: each runs here, when taken).
+
+    The pieces handed out and not yet taken are kept, so that :meth:`drop`
+    finds every one of them, however far a loop of submissions got when
+    Ctrl-C came.
+    """
+
+    def __init__(self, executor: Executor | None) -> None:
+        self.executor = check_executor(executor)
+        # Only threads of this process share the stop flags.
+        self._threads = isinstance(executor, ThreadPoolExecutor)
+        self._out: list[Piece] = []
+
+    @property
+    def elsewhere(self) -> bool:
+        """Whether pieces run outside this process (an executor other than threads)."""
+        return self.executor is not None and not self._threads
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> Piece:
+        """Hand out ``fn(*args)``; without an executor it runs when taken."""
+        piece = Piece(fn, args)
+        if self.executor is not None:
+            piece.stop = threading.Event() if self._threads else None
+            self._out.append(piece)
+            piece.future = self.executor.submit(_run, piece.stop, fn, args)
+        return piece
+
+    def take(self, piece: Piece) -> Any:
+        """The piece's result (waiting for it); its warnings are raised again here."""
+        if piece.future is None:
+            return piece.fn(*piece.args)
+        out, caught = piece.future.result()
+        self._out.remove(piece)
+        for category, message in caught:
+            warnings.warn(message, category, stacklevel=2)
+        return out
+
+    def drop(self) -> None:
+        """Drop the pieces not taken: cancel those not started, stop those running on threads.
+
+        Waits until the stopped ones have ended (their fits stop at their
+        next step); those in other processes run on there.
+        """
+        running = []
+        for p in self._out:
+            if p.future is None or p.future.cancel():
+                continue
+            if p.stop is not None:
+                p.stop.set()
+                running.append(p.future)
+        self._out.clear()
+        if running:
+            wait(running)
+
+    def map(self, fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]]) -> list[Any]:
+        """``[fn(*args) for args in calls]``, the calls spread over the executor.
+
+        The results come in the order of ``calls``. When a call fails (or
+        Ctrl-C interrupts), the first failure in that order is raised once
+        every call still out is dropped (:meth:`drop`).
+        """
+        if self.executor is None or len(calls) < 2:
+            return [fn(*args) for args in calls]
+        try:
+            pieces = [self.submit(fn, *args) for args in calls]
+            return [self.take(p) for p in pieces]
+        except BaseException:
+            self.drop()
+            raise

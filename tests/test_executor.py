@@ -1,0 +1,153 @@
+"""identify on an executor: the same run as without one, to the last bit, wherever the pieces ran.
+
+The positioning stage with its validation data runs a guarded path whose
+first gamma needs the pinned fit, and a race that drops its global starts
+after one round: every kind of piece identify hands out is there.
+"""
+
+from __future__ import annotations
+
+import warnings
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid._spread import Spread
+
+
+class LastFirst(Executor):
+    """Runs the tasks handed out in this thread, the last handed out first, once a result is asked.
+
+    The results come back in the reverse of the order the tasks were handed
+    out: a run that took them as they finish would see them reversed.
+    """
+
+    def __init__(self) -> None:
+        self.queue: list[tuple[Future[Any], Any, tuple[Any, ...]]] = []
+        self.ran: list[Any] = []
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
+        future = _Lazy(self)
+        self.queue.append((future, fn, args))
+        return future
+
+    def run_all(self) -> None:
+        while self.queue:
+            future, fn, args = self.queue.pop()
+            if not future.set_running_or_notify_cancel():
+                continue
+            self.ran.append(args[1])  # the piece's function (lpvid._spread._run's argument)
+            try:
+                future.set_result(fn(*args))
+            except BaseException as exc:
+                future.set_exception(exc)
+
+
+class _Lazy(Future):
+    def __init__(self, owner: LastFirst) -> None:
+        super().__init__()
+        self.owner = owner
+
+    def result(self, timeout: float | None = None) -> Any:
+        self.owner.run_all()
+        return super().result(timeout)
+
+
+def _identify(ds: Any, executor: Executor | None = None) -> lpvid.IdentifyResult:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        return lpvid.identify(
+            ds.identification,
+            ds.order,
+            ds.basis,
+            validation=ds.validation,
+            fixed=ds.fixed,
+            executor=executor,
+        )
+
+
+@pytest.fixture(scope="module")
+def stage():
+    ds = lpvid.datasets.positioning_stage()
+    return ds, _identify(ds)
+
+
+def assert_same_run(a: lpvid.IdentifyResult, b: lpvid.IdentifyResult) -> None:
+    """The same local models, candidates (raced alike), path, choice and model, bit for bit."""
+    for x, y in zip(a.local, b.local, strict=True):
+        assert np.array_equal(x.theta, y.theta)
+    assert [(c.name, c.refined, c.vnls, c.validation_vnls) for c in a.candidates] == [
+        (c.name, c.refined, c.vnls, c.validation_vnls) for c in b.candidates
+    ]
+    assert [(e.gamma, e.pinned, e.vnls, e.validation_vnls) for e in a.entries] == [
+        (e.gamma, e.pinned, e.vnls, e.validation_vnls) for e in b.entries
+    ]
+    assert (a.chosen, a.start, a.reason, a.refitted) == (b.chosen, b.start, b.reason, b.refitted)
+    assert np.array_equal(a.model.theta, b.model.theta)
+
+
+def test_the_stage_exercises_every_kind_of_piece(stage):
+    _, here = stage
+    assert any(e.pinned for e in here.entries)  # the pinned fit was needed (and kept)
+    assert any(not c.refined for c in here.candidates)  # the race dropped runners
+    assert len(here.local) > 1
+
+
+def test_identify_on_threads_is_the_run_here(stage):
+    ds, here = stage
+    with ThreadPoolExecutor(2) as pool:
+        on_threads = _identify(ds, pool)
+    assert_same_run(here, on_threads)
+
+
+def test_results_are_taken_in_order_not_as_they_finish(stage):
+    ds, here = stage
+    pool = LastFirst()
+    assert_same_run(here, _identify(ds, pool))
+    names = {fn.__name__ for fn in pool.ran}
+    # the local models, the race's runners, and the pinned fit beside the warm one
+    assert {"_point_model", "_advanced", "_judged"} <= names
+
+
+def test_identify_on_a_dask_cluster_is_the_run_here(stage):
+    distributed = pytest.importorskip("distributed")
+    ds, here = stage
+    with (
+        distributed.LocalCluster(
+            n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        on_dask = _identify(ds, client.get_executor())
+    assert_same_run(here, on_dask)
+
+
+def test_the_first_failure_in_order_is_raised():
+    def piece(k: int) -> int:
+        if k >= 1:
+            raise ValueError(f"piece {k}")
+        return k
+
+    pool = LastFirst()
+    with pytest.raises(ValueError, match="piece 1"):
+        Spread(pool).map(piece, [(k,) for k in range(4)])
+    assert len(pool.ran) == 4  # pieces 3 and 2 failed first
+
+
+def test_warnings_of_pieces_reach_the_caller():
+    def piece(k: int) -> int:
+        warnings.warn(f"piece {k} warns", lpvid.ConvergenceWarning, stacklevel=1)
+        return k
+
+    with ThreadPoolExecutor(2) as pool, pytest.warns(lpvid.ConvergenceWarning) as caught:
+        assert Spread(pool).map(piece, [(0,), (1,)]) == [0, 1]
+    assert [str(w.message) for w in caught] == ["piece 0 warns", "piece 1 warns"]
+
+
+def test_executor_must_be_an_executor(stage):
+    ds, _ = stage
+    with pytest.raises(TypeError, match="executor: expected a concurrent.futures.Executor"):
+        lpvid.identify(ds.identification, ds.order, ds.basis, executor=2)
