@@ -117,7 +117,7 @@ def test_identify_on_a_dask_cluster_is_the_run_here(stage):
     ds, here = stage
     with (
         distributed.LocalCluster(
-            n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None
+            n_workers=2, processes=True, threads_per_worker=1, dashboard_address=":0"
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
