@@ -174,7 +174,7 @@ def test_ctrl_c_in_a_terminal_stops_the_demo_and_its_figure_workers(tmp_path):
 
 
 class SignallingPool(ThreadPoolExecutor):
-    """Threads whose first piece of the race sends SIGINT, then waits for its stop flag.
+    """Threads whose first piece of the race gets SIGINT, then waits for its stop flag.
 
     Keeps every future it handed out, to check that none runs on.
     """
@@ -190,7 +190,9 @@ class SignallingPool(ThreadPoolExecutor):
             self.fired = True
 
             def first(*a):
-                os.kill(os.getpid(), signal.SIGINT)
+                # Ctrl-C delivered to this worker thread, as a terminal's SIGINT may be: the
+                # main thread, waiting for this piece, must still see it.
+                signal.pthread_kill(threading.get_ident(), signal.SIGINT)
                 stop.wait(timeout=30)  # set once the main thread has the KeyboardInterrupt
                 return piece(*a)
 

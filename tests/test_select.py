@@ -265,7 +265,11 @@ def test_ctrl_c_before_any_pair_is_done(small, python_sigint):
     gate = threading.Event()
     with ThreadPoolExecutor(1) as pool:
         pool.submit(gate.wait, 30)  # the only worker is busy: the pairs wait in the queue
-        timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+        # Ctrl-C delivered to another thread (the timer's), as a terminal's SIGINT may be:
+        # the main thread, waiting for the pairs, must still see it before the gate opens.
+        timer = threading.Timer(
+            0.5, lambda: signal.pthread_kill(threading.get_ident(), signal.SIGINT)
+        )
         timer.start()
         try:
             with pytest.raises(KeyboardInterrupt, match="before any pair was done"):

@@ -29,20 +29,38 @@ import threading
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
+from concurrent.futures import TimeoutError as WaitTimeout  # not the builtin before 3.11
 from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
 from lpvid._capture import collected
 
-__all__ = ["Piece", "Spread", "check_executor", "stop_flag"]
+__all__ = ["POLL_S", "Piece", "Spread", "check_executor", "stop_flag", "waited"]
 
 _STOP: ContextVar[threading.Event | None] = ContextVar("lpvid_stop", default=None)
+
+#: Seconds between the main thread's looks at Ctrl-C while it waits for a
+#: piece. A process-directed SIGINT may be delivered to a worker thread;
+#: the main thread, blocked on a lock without a timeout, would then see it
+#: only when the piece it waits for ends (never, when that piece waits for
+#: the run to stop).
+POLL_S = 0.05
 
 
 def stop_flag() -> threading.Event | None:
     """The stop flag of the piece running in this thread (None outside a piece)."""
     return _STOP.get()
+
+
+def waited(future: Future[Any]) -> Any:
+    """``future.result()``, waited for in short waits so that Ctrl-C is seen (:data:`POLL_S`)."""
+    while True:  # the main thread runs its signal handlers between the waits
+        try:
+            return future.result(timeout=POLL_S)
+        except WaitTimeout:
+            if future.done():  # the piece's own TimeoutError
+                raise
 
 
 def check_executor(executor: Any) -> Executor | None:
@@ -110,7 +128,7 @@ class Spread:
         """The piece's result (waiting for it); its warnings are raised again here."""
         if piece.future is None:
             return piece.fn(*piece.args)
-        out, caught = piece.future.result()
+        out, caught = waited(piece.future)
         self._out.remove(piece)
         for category, message in caught:
             warnings.warn(message, category, stacklevel=2)

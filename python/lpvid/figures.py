@@ -24,6 +24,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from lpvid._spread import waited
 from lpvid.identified import IdentifyResult
 
 T = TypeVar("T")
@@ -161,7 +162,7 @@ class Drawing:
                 draw(job, self.folder)
         try:
             for fut in self.futures:
-                fut.result()
+                waited(fut)
         except BaseException:
             self.abandon()
             raise

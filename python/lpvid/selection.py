@@ -22,7 +22,7 @@ import numpy as np
 
 from lpvid._capture import collected
 from lpvid._checks import positive_float, positive_int
-from lpvid._spread import check_executor
+from lpvid._spread import POLL_S, check_executor
 from lpvid._threads import single_blas
 from lpvid.basis import Basis, Polynomial
 from lpvid.capacity import zero_model
@@ -230,7 +230,7 @@ def _gather(
             futures[_submit(executor, tasks[k])] = k
         pending = set(futures)
         while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            done, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
             for f in sorted(done, key=lambda f: futures[f]):
                 take(f)
     except KeyboardInterrupt:
