@@ -9,7 +9,6 @@ with the floor ``M_frf + M_time`` (each part weighted by its own noise).
 
 from __future__ import annotations
 
-import numbers
 import warnings
 from dataclasses import dataclass
 from typing import Any
@@ -86,8 +85,6 @@ class TimeCost:
                 )
         else:
             object.__setattr__(self, "x0", real_array(self.x0, "x0", ndim=(1, 2)))
-        if isinstance(self.skip, bool) or not isinstance(self.skip, numbers.Integral):
-            raise TypeError(f"skip: expected an integer, got {type(self.skip).__name__}")
         skip = positive_int(self.skip, "skip", minimum=0)
         shortest = min(self.data.n_samples)
         if skip >= shortest:
