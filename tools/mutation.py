@@ -41,7 +41,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The fast test files that exercise each Python module (relative to python/lpvid).
 PY_TESTS = {
-    "trust/covariance.py": ["tests/test_covariance.py"],
+    "trust/covariance.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
+    "trust/design.py": ["tests/test_nextpoints.py"],
+    "trust/nextpoints.py": ["tests/test_nextpoints.py"],
     "trust/enforce.py": ["tests/test_stable_fit.py"],
     "trust/lyapunov.py": ["tests/test_stability.py"],
     "trust/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
