@@ -66,7 +66,7 @@ def sigma_from_coherence(
 
     Examples
     --------
-    |G| = 2, gamma^2 = 0.8, 20 averages: sigma = 2 sqrt(0.2 / (20 * 0.8)).
+    ``|G| = 2``, ``gamma^2 = 0.8``, 20 averages: ``sigma = 2 sqrt(0.2 / (20 * 0.8))``.
 
     >>> from lpvid.readers import sigma_from_coherence
     >>> float(sigma_from_coherence(2.0, 0.8, 20).round(6))
