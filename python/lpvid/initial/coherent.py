@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._graphs import assignment
+from lpvid.errors import CoherenceError
 from lpvid.frozen import stable_poles
 from lpvid.schedule import propagation_order
 
@@ -53,10 +54,6 @@ Ss = tuple[Arr, Arr, Arr, Arr]
 
 #: Largest condition number accepted for a similarity transform.
 MAX_COND = 1e12
-
-
-class CoherenceError(ValueError):
-    """A coherent form cannot be built for these local models."""
 
 
 def transform(model: Ss, T: Arr) -> Ss:

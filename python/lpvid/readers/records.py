@@ -16,6 +16,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from lpvid.errors import FileError
+
 __all__ = [
     "COHERENCE",
     "FRF",
@@ -53,10 +55,6 @@ _TIME_UNITS = {
     "hour": 3600.0,
     "hours": 3600.0,
 }
-
-
-class FileError(ValueError):
-    """A file, or one record in it, that cannot be used; the message names both."""
 
 
 @dataclass(frozen=True)
