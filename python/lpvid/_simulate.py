@@ -7,23 +7,21 @@ method's docstring is the documentation.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from lpvid import _core
 from lpvid._checks import positive_float, real_array
-
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
+from lpvid._modeltype import ModelLike
 
 # What `LpvModel.simulate` does when the simulation diverges.
 _ON_DIVERGENCE = ("warn", "raise")
 
 
 def simulate(
-    model: LpvModel,
+    model: ModelLike,
     u: ArrayLike,
     p: ArrayLike,
     x0: ArrayLike | None,

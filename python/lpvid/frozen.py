@@ -9,13 +9,10 @@ rule; a test compares the two.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
+from lpvid._modeltype import ModelLike
 
 __all__ = [
     "frozen_A",
@@ -85,19 +82,19 @@ def stability_margin(lam: ArrayLike, Ts: float | None) -> NDArray[np.float64]:
     return np.where(bad, -np.inf, out)
 
 
-def frozen_A(model: LpvModel, p: ArrayLike) -> NDArray[np.float64]:
+def frozen_A(model: ModelLike, p: ArrayLike) -> NDArray[np.float64]:
     """``A(p)`` at every scheduling value, shape ``(M, n, n)``."""
     psi = model.basis_values(p)
     w = np.concatenate([np.ones((psi.shape[0], 1)), psi], axis=1)
     return np.tensordot(w, model.A, axes=1)
 
 
-def frozen_poles(model: LpvModel, p: ArrayLike) -> NDArray[np.complex128]:
+def frozen_poles(model: ModelLike, p: ArrayLike) -> NDArray[np.complex128]:
     """Poles of the frozen models at every scheduling value, shape ``(M, n)``."""
     return np.linalg.eigvals(frozen_A(model, p)).astype(complex)
 
 
-def frozen_stable(model: LpvModel, p: ArrayLike) -> bool:
+def frozen_stable(model: ModelLike, p: ArrayLike) -> bool:
     """Whether the frozen models are stable at every given scheduling value.
 
     Parameters

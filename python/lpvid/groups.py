@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._modeltype import ModelLike
 from lpvid.layout import MATRICES
-
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
 
 __all__ = ["GroupNorms", "group_norms"]
 
@@ -90,7 +88,7 @@ class GroupNorms:
         return self.table()
 
 
-def group_norms(model: LpvModel, p_range: Any = None) -> GroupNorms:
+def group_norms(model: ModelLike, p_range: Any = None) -> GroupNorms:
     """Compute :class:`GroupNorms` of a model; see :meth:`LpvModel.group_norms`."""
     rng = model.p_range if p_range is None else p_range
     nb = model.n_basis

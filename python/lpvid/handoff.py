@@ -22,17 +22,15 @@ import os
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int, real_array
 from lpvid._files import write_atomic
+from lpvid._modeltype import ModelLike
 from lpvid.schedule import range_pairs
-
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
 
 __all__ = ["GRID_POINTS", "SignalNames", "save_grid", "signal_names", "to_control_lpv"]
 
@@ -43,7 +41,7 @@ SignalNames = tuple[list[str], list[str], list[str]]
 
 
 def signal_names(
-    model: LpvModel,
+    model: ModelLike,
     names: Any = None,
     *,
     inputs: Sequence[str] | None = None,
@@ -128,7 +126,7 @@ def _names_of(source: Any) -> dict[str, list[str] | None]:
     )
 
 
-def _stacked(model: LpvModel) -> NDArray[np.float64]:
+def _stacked(model: ModelLike) -> NDArray[np.float64]:
     """``[[A, B], [C, D]]`` per coefficient, flattened: shape (Nb+1, (n+l)(n+r))."""
     top = np.concatenate([model.A, model.B], axis=2)
     bottom = np.concatenate([model.C, model.D], axis=2)
@@ -136,7 +134,7 @@ def _stacked(model: LpvModel) -> NDArray[np.float64]:
 
 
 def to_control_lpv(
-    model: LpvModel,
+    model: ModelLike,
     names: Any = None,
     *,
     inputs: Sequence[str] | None = None,
@@ -248,7 +246,7 @@ def to_control_lpv(
     )
 
 
-def _grid_axes(model: LpvModel, grid: Any, count: int) -> list[NDArray[np.float64]]:
+def _grid_axes(model: ModelLike, grid: Any, count: int) -> list[NDArray[np.float64]]:
     n_params = model.basis.n_params
     if grid is None:
         count = positive_int(count, "count")
@@ -285,7 +283,7 @@ def _matlab_names(names: list[str]) -> list[str]:
 
 
 def save_grid(
-    model: LpvModel,
+    model: ModelLike,
     path: str | os.PathLike[str],
     grid: Any = None,
     names: Any = None,

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
+from lpvid._modeltype import ModelLike
 
 __all__ = ["MATRICES", "fixed_mask", "free_mask", "strictly_proper"]
 
@@ -17,7 +16,7 @@ __all__ = ["MATRICES", "fixed_mask", "free_mask", "strictly_proper"]
 MATRICES = ("A", "B", "C", "D")
 
 
-def fixed_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
+def fixed_mask(model: ModelLike, fixed: Any = None) -> NDArray[np.bool_]:
     """Which entries of ``model.theta`` stay at their current value.
 
     Parameters
@@ -94,7 +93,7 @@ def fixed_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
     return np.concatenate(parts)
 
 
-def free_mask(model: LpvModel, fixed: Any = None) -> NDArray[np.bool_]:
+def free_mask(model: ModelLike, fixed: Any = None) -> NDArray[np.bool_]:
     """The complement of :func:`fixed_mask`: True where a parameter is free."""
     return ~fixed_mask(model, fixed)
 

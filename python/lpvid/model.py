@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid import _core, _simulate, modelfile
+from lpvid import _core, _simulate, handoff, modelfile
 from lpvid._checks import real_array, sample_time
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
-
-if TYPE_CHECKING:
-    from lpvid.groups import GroupNorms
+from lpvid.groups import GroupNorms, group_norms
 
 __all__ = ["LpvModel"]
 
@@ -357,8 +355,6 @@ class LpvModel:
             gives the table.
 
         """
-        from lpvid.groups import group_norms
-
         return group_norms(self, p_range)
 
     # ------------------------------------------------------------------- files
@@ -436,9 +432,7 @@ class LpvModel:
         ``options``: ``inputs``, ``outputs``, ``parameters``, ``full_state``,
         ``name`` (see :func:`lpvid.handoff.to_control_lpv`).
         """
-        from lpvid.handoff import to_control_lpv
-
-        return to_control_lpv(self, names, **options)
+        return handoff.to_control_lpv(self, names, **options)
 
     def save_grid(
         self, path: str | os.PathLike[str], grid: Any = None, names: Any = None, **options: Any
@@ -451,9 +445,7 @@ class LpvModel:
         ``count=`` sets the number), ``names`` and ``options``:
         :func:`lpvid.handoff.save_grid`.
         """
-        from lpvid.handoff import save_grid
-
-        return save_grid(self, path, grid, names, **options)
+        return handoff.save_grid(self, path, grid, names, **options)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, LpvModel):

@@ -39,9 +39,9 @@ before saving). Without ``lpvid_model`` the model is built from the
 variables alone (``D``, ``basis_domain``, ``basis_n_params``,
 ``basis_names`` and ``p_range`` may then be absent), and ``info`` is empty.
 
-This module works on the model through its attributes and is handed the
-class to build (:meth:`lpvid.LpvModel.load`), so that it does not import
-:mod:`lpvid.model`.
+This module works on the model through its attributes (those of
+``lpvid._modeltype.ModelLike``) and is handed the class to build
+(:meth:`lpvid.LpvModel.load`), so that it does not import :mod:`lpvid.model`.
 """
 
 from __future__ import annotations
@@ -49,16 +49,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
 from lpvid._files import mat_variables, write_atomic
+from lpvid._modeltype import ModelLike
 from lpvid.basis import basis_from_dict
-
-if TYPE_CHECKING:
-    from lpvid.model import LpvModel
 
 __all__ = ["FORMAT", "VERSION", "MATRICES", "save_model", "load_model", "model_content"]
 
@@ -67,14 +66,14 @@ VERSION = 1
 #: The coefficient arrays of a model, in file order.
 MATRICES = ("A", "B", "C", "D")
 
-ModelT = TypeVar("ModelT", bound="LpvModel")
+ModelT = TypeVar("ModelT", bound=ModelLike)
 
 
 def _canonical(content: dict[str, Any]) -> bytes:
     return json.dumps(content, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
 
 
-def model_content(model: LpvModel) -> dict[str, Any]:
+def model_content(model: ModelLike) -> dict[str, Any]:
     """The ``content`` part of the file for a model (plain lists and numbers)."""
     n, r, l, nb = model.shape
     content: dict[str, Any] = {
@@ -92,7 +91,7 @@ def model_content(model: LpvModel) -> dict[str, Any]:
     return content
 
 
-def _build(cls: type[ModelT], content: dict[str, Any]) -> ModelT:
+def _build(cls: Callable[..., ModelT], content: dict[str, Any]) -> ModelT:
     """Build a model of class ``cls`` from a ``content`` dict and check its sizes."""
     basis = basis_from_dict(content["basis"])
     model = cls(
@@ -118,7 +117,7 @@ def _document(content: dict[str, Any]) -> bytes:
     return json.dumps(doc, indent=1, allow_nan=False).encode()
 
 
-def save_model(model: LpvModel, path: str | os.PathLike[str]) -> Path:
+def save_model(model: ModelLike, path: str | os.PathLike[str]) -> Path:
     """Write ``model`` to ``path``: lpvid JSON (``.json``) or MATLAB (``.mat``).
 
     See :meth:`lpvid.LpvModel.save`.
@@ -160,7 +159,7 @@ def _matlab_variables(content: dict[str, Any], names: list[str], document: str) 
     return out
 
 
-def load_model(path: str | os.PathLike[str], cls: type[ModelT]) -> ModelT:
+def load_model(path: str | os.PathLike[str], cls: Callable[..., ModelT]) -> ModelT:
     """Read a model file (``.json`` or ``.mat``) into a model of class ``cls``.
 
     See :meth:`lpvid.LpvModel.load`; the rules for ``.mat`` files are in the
