@@ -148,3 +148,21 @@ class Dataset:
         lam = lam[lam.imag > 0]
         light = lam[-lam.real / np.abs(lam) < 0.3]
         return np.sort(np.abs(light)) / (2 * np.pi)
+
+
+def _ranges(ds: Dataset) -> str:
+    """The resonances at both ends of the identification range, for a description.
+
+    Parameters
+    ----------
+    ds : Dataset
+        A built-in data set.
+
+    Returns
+    -------
+    str
+        ``"lo -> hi"`` in Hz for each lightly damped mode, comma separated.
+    """
+    lo = ds.resonances_hz(ds.identification.p_range[0])
+    hi = ds.resonances_hz(ds.identification.p_range[1])
+    return ", ".join(f"{a:.0f} -> {b:.0f}" for a, b in zip(lo, hi, strict=True))

@@ -9,13 +9,12 @@ from numpy.typing import NDArray
 
 from lpvid._checks import positive_int, sample_time
 from lpvid.basis import Polynomial
-from lpvid.datasets.container import Dataset
+from lpvid.datasets.container import Dataset, _ranges
 from lpvid.datasets.synthesis import (
     Matrices,
     _balance_blocks,
     _generators,
     _measure,
-    _ranges,
     _snr,
 )
 

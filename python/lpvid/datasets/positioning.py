@@ -8,8 +8,8 @@ import numpy as np
 
 from lpvid._checks import positive_int, sample_time
 from lpvid.basis import Polynomial
-from lpvid.datasets.container import Dataset
-from lpvid.datasets.synthesis import Matrices, _generators, _measure, _ranges, _snr
+from lpvid.datasets.container import Dataset, _ranges
+from lpvid.datasets.synthesis import Matrices, _generators, _measure, _snr
 
 __all__ = ["STAGE", "positioning_stage"]
 

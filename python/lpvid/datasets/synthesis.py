@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -13,9 +13,6 @@ from numpy.typing import NDArray
 from lpvid._checks import positive_int
 from lpvid.data import FrfData, z_points
 from lpvid.frozen import lti_frf
-
-if TYPE_CHECKING:
-    from lpvid.datasets.container import Dataset
 
 Matrices = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 
@@ -120,9 +117,3 @@ def _generators(seed: Any) -> tuple[np.random.Generator, np.random.Generator]:
     s = positive_int(seed, "seed", minimum=0)
     ident, valid = np.random.SeedSequence(s).spawn(2)
     return np.random.default_rng(ident), np.random.default_rng(valid)
-
-
-def _ranges(ds: Dataset) -> str:
-    lo = ds.resonances_hz(ds.identification.p_range[0])
-    hi = ds.resonances_hz(ds.identification.p_range[1])
-    return ", ".join(f"{a:.0f} -> {b:.0f}" for a, b in zip(lo, hi, strict=True))
