@@ -1,15 +1,19 @@
-"""Are the local models on one branch? A diagnosis along the scheduling axes."""
+"""Are the local models on one branch? A diagnosis along the scheduling axes.
+
+:func:`consistency` computes it; its result, :class:`Consistency`, is
+defined in :mod:`lpvid.initial.localmodels` (a :class:`LocalModels` carries
+one) and re-exported here.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int
-from lpvid.initial.localmodels import local_p, lti_models
+from lpvid.initial.localmodels import Consistency, local_p, lti_models
 from lpvid.initial.poles import describe_pole, is_real, match_poles, pole_coordinates
 from lpvid.schedule import unit_scaled
 
@@ -27,81 +31,6 @@ def _neighbours(s: Arr, k: int) -> list[tuple[int, int]]:
         for m in np.argsort(dist[q], kind="stable")[:k]:
             pairs.add((min(q, int(m)), max(q, int(m))))
     return sorted(pairs)
-
-
-@dataclass
-class Consistency:
-    """How consistent local models are along the scheduling axes.
-
-    Each point is compared with its nearest points: the poles of the two
-    models are paired by the best matching (Hungarian algorithm on the
-    distance between :func:`pole_coordinates`, i.e. log-frequency and
-    damping angle), and the worst pair's distance, divided by the distance
-    between the two points in the scaled scheduling space, is that pair of
-    points' *rate*. Each point's smallest rate says how far its model is
-    from the nearest agreeing neighbour; the reference is the median of
-    these over the points (how fast the poles move in a typical step), and
-    a point's *score* is its smallest rate divided by the reference, so that
-    one odd model spoils the score of no point but its own.
-
-    Attributes
-    ----------
-    p : ndarray, shape (N, Np)
-        Scheduling values.
-    scores : ndarray, shape (N,)
-        Smallest rate of each point relative to the reference (about 1 for
-        a consistent set).
-    distances : ndarray, shape (N,)
-        The worst pole distance along each point's best pair.
-    pairs : list of (int, int, float, float)
-        ``(a, b, distance, rate)`` for every pair of neighbouring points.
-    reference : float
-        Median over the points of their smallest rate.
-    threshold, min_distance : float
-        A point is inconsistent when its score exceeds ``threshold`` and its
-        distance exceeds ``min_distance``.
-    inconsistent : list of int
-        The inconsistent points.
-    details : dict of int to str
-        For every inconsistent point, the worst pole pairing in words.
-    """
-
-    p: Arr
-    scores: Arr
-    distances: Arr
-    pairs: list[tuple[int, int, float, float]]
-    reference: float
-    threshold: float
-    min_distance: float
-    inconsistent: list[int]
-    details: dict[int, str] = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        """True when no point looks inconsistent."""
-        return not self.inconsistent
-
-    @property
-    def worst(self) -> int:
-        """Index of the point with the highest score."""
-        return int(np.argmax(self.scores))
-
-    def __str__(self) -> str:
-        head = (
-            "local models consistent along the scheduling axis"
-            if self.ok
-            else f"local models inconsistent at point(s) {self.inconsistent}"
-        )
-        lines = [
-            f"{head} (reference pole rate {self.reference:.3g} per unit of scaled p; "
-            f"flag: score > {self.threshold:g} and distance > {self.min_distance:g})",
-            "  q  p                  score  distance",
-        ]
-        for q in range(self.scores.size):
-            ps = ", ".join(f"{v:.4g}" for v in self.p[q])
-            mark = "  <- " + self.details.get(q, "") if q in self.inconsistent else ""
-            lines.append(f"{q:3d}  {ps:<16s} {self.scores[q]:7.2f} {self.distances[q]:9.3g}{mark}")
-        return "\n".join(lines)
 
 
 def consistency(

@@ -1,9 +1,16 @@
-"""The container of local LTI models, one per scheduling point, and its checks."""
+"""The container of local LTI models, one per scheduling point, and its checks.
+
+Also :class:`Consistency`, the result of :func:`lpvid.consistency`
+(computed in :mod:`lpvid.initial.diagnosis`), because a :class:`LocalModels`
+carries one: defined here, the diagnosis depends on the container and not
+the other way round.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING, Any, overload
+from dataclasses import dataclass, field
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -12,10 +19,84 @@ from lpvid._checks import real_array, same_sample_time
 from lpvid.frozen import stable_poles
 from lpvid.model import LpvModel
 
-if TYPE_CHECKING:
-    from lpvid.initial.diagnosis import Consistency
+__all__ = ["Consistency", "LocalModels", "is_stable", "local_p", "lti_models"]
 
-__all__ = ["LocalModels", "is_stable", "local_p", "lti_models"]
+Arr = NDArray[np.float64]
+
+
+@dataclass
+class Consistency:
+    """How consistent local models are along the scheduling axes.
+
+    Each point is compared with its nearest points: the poles of the two
+    models are paired by the best matching (Hungarian algorithm on the
+    distance between :func:`pole_coordinates`, i.e. log-frequency and
+    damping angle), and the worst pair's distance, divided by the distance
+    between the two points in the scaled scheduling space, is that pair of
+    points' *rate*. Each point's smallest rate says how far its model is
+    from the nearest agreeing neighbour; the reference is the median of
+    these over the points (how fast the poles move in a typical step), and
+    a point's *score* is its smallest rate divided by the reference, so that
+    one odd model spoils the score of no point but its own.
+
+    Attributes
+    ----------
+    p : ndarray, shape (N, Np)
+        Scheduling values.
+    scores : ndarray, shape (N,)
+        Smallest rate of each point relative to the reference (about 1 for
+        a consistent set).
+    distances : ndarray, shape (N,)
+        The worst pole distance along each point's best pair.
+    pairs : list of (int, int, float, float)
+        ``(a, b, distance, rate)`` for every pair of neighbouring points.
+    reference : float
+        Median over the points of their smallest rate.
+    threshold, min_distance : float
+        A point is inconsistent when its score exceeds ``threshold`` and its
+        distance exceeds ``min_distance``.
+    inconsistent : list of int
+        The inconsistent points.
+    details : dict of int to str
+        For every inconsistent point, the worst pole pairing in words.
+    """
+
+    p: Arr
+    scores: Arr
+    distances: Arr
+    pairs: list[tuple[int, int, float, float]]
+    reference: float
+    threshold: float
+    min_distance: float
+    inconsistent: list[int]
+    details: dict[int, str] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when no point looks inconsistent."""
+        return not self.inconsistent
+
+    @property
+    def worst(self) -> int:
+        """Index of the point with the highest score."""
+        return int(np.argmax(self.scores))
+
+    def __str__(self) -> str:
+        head = (
+            "local models consistent along the scheduling axis"
+            if self.ok
+            else f"local models inconsistent at point(s) {self.inconsistent}"
+        )
+        lines = [
+            f"{head} (reference pole rate {self.reference:.3g} per unit of scaled p; "
+            f"flag: score > {self.threshold:g} and distance > {self.min_distance:g})",
+            "  q  p                  score  distance",
+        ]
+        for q in range(self.scores.size):
+            ps = ", ".join(f"{v:.4g}" for v in self.p[q])
+            mark = "  <- " + self.details.get(q, "") if q in self.inconsistent else ""
+            lines.append(f"{q:3d}  {ps:<16s} {self.scores[q]:7.2f} {self.distances[q]:9.3g}{mark}")
+        return "\n".join(lines)
 
 
 def is_stable(model: LpvModel) -> bool:
