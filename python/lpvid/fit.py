@@ -25,6 +25,7 @@ from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.settings import L21Settings
 from lpvid.similarity import pointwise_similarity_directions, similarity_directions
 from lpvid.timecost import combined_problem
+from lpvid.trust.enforce import run_stable
 
 __all__ = ["fit_nls", "fit_l21", "l21_path", "lm_settings", "raise_if_interrupted"]
 
@@ -259,8 +260,6 @@ def _stable_run(
     """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
     if not _check_flag(stable, "stable"):
         return run(None)
-    from lpvid.trust.enforce import run_stable
-
     return run_stable(model, p_range, run)
 
 
@@ -481,8 +480,6 @@ def l21_path(
         return _core.fit_l21(problem, m.theta, sup, free, s.to_core(g), monitor, check, flat)
 
     if _check_flag(stable, "stable"):
-        from lpvid.trust.enforce import run_stable
-
         raws = _sweep(model, gs, lambda m, g: run_stable(m, rng, lambda c: one(m, g, c)))
     elif pin:
         raws = _sweep(model, gs, one)
