@@ -1,0 +1,126 @@
+"""The house check (tools/house_check.py): import cycles and long files."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _load_house_check():
+    spec = importlib.util.spec_from_file_location("house_check", ROOT / "tools" / "house_check.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+house = _load_house_check()
+
+
+def _project(root: Path, files: dict[str, str]) -> Path:
+    """A project at ``root`` with the package python/lpvid made of ``files``."""
+    package = root / "python" / "lpvid"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text('"""A synthetic package."""\n')
+    for name, text in files.items():
+        path = package / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return root
+
+
+def _cycles(root: Path) -> list[list[str]]:
+    return house.cycles(house.import_graph(root / "python" / "lpvid"))
+
+
+def test_a_cycle_through_a_type_checking_import_is_found(tmp_path, capsys):
+    root = _project(
+        tmp_path,
+        {
+            "model.py": "from lpvid import helper\n",
+            "helper.py": (
+                "from typing import TYPE_CHECKING\n"
+                "if TYPE_CHECKING:\n"
+                "    from lpvid.model import Model\n"
+            ),
+        },
+    )
+    assert _cycles(root) == [["lpvid.helper", "lpvid.model"]]
+    assert house.main([str(root)]) == 1
+    out = capsys.readouterr().out
+    assert "import cycle: lpvid.helper -> lpvid.model -> lpvid.helper" in out
+
+
+def test_a_deferred_import_cycle_is_found(tmp_path):
+    root = _project(
+        tmp_path,
+        {
+            "fit.py": "def fit():\n    from lpvid.sub.enforce import run\n    return run()\n",
+            "sub/__init__.py": "",
+            "sub/enforce.py": "import lpvid.sub.refit\n",
+            "sub/refit.py": "from lpvid.fit import fit\n",
+        },
+    )
+    assert _cycles(root) == [["lpvid.fit", "lpvid.sub.enforce", "lpvid.sub.refit"]]
+    assert house.main([str(root)]) == 1
+
+
+def test_a_package_init_that_reexports_an_importer_is_a_cycle(tmp_path):
+    # fit imports only sub.enforce, but Python runs sub/__init__.py first, which imports fit.
+    root = _project(
+        tmp_path,
+        {
+            "fit.py": "from lpvid.sub.enforce import run\n",
+            "sub/__init__.py": "from lpvid.sub.refit import refit\n",
+            "sub/enforce.py": "def run(): ...\n",
+            "sub/refit.py": "from .. import fit\n",
+        },
+    )
+    assert _cycles(root) == [["lpvid.fit", "lpvid.sub", "lpvid.sub.refit"]]
+
+
+def test_a_clean_package_passes(tmp_path, capsys):
+    root = _project(
+        tmp_path,
+        {
+            "model.py": "from lpvid import helper\nfrom lpvid.sub import low\n",
+            "helper.py": (
+                "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from . import low\n"
+            ),
+            "low.py": "import numpy\n",
+            "sub/__init__.py": "from lpvid.sub.low import x\n",
+            "sub/low.py": "from lpvid.sub import other\nx = 1\n",
+            "sub/other.py": "",
+        },
+    )
+    (root / "rust").mkdir()
+    (root / "rust" / "lib.rs").write_text("fn f() {}\n" * 500)
+    assert _cycles(root) == []
+    assert house.main([str(root)]) == 0
+    assert "house: 0 import cycle(s), 0 file(s) over 500 lines" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("where", ["python/lpvid/big.py", "rust/big.rs"])
+def test_a_file_of_501_lines_is_flagged(tmp_path, capsys, where):
+    root = _project(tmp_path, {})
+    path = root / where
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("x = 1\n" * 501)
+    assert house.long_files(root) == [(Path(where), 501)]
+    assert house.main([str(root)]) == 1
+    assert f"long file: {where} 501 lines (limit 500)" in capsys.readouterr().out
+
+
+def test_tests_and_benches_are_not_counted(tmp_path):
+    root = _project(tmp_path, {})
+    for folder in ("tests", "benches"):
+        (root / folder).mkdir()
+        (root / folder / "long.py").write_text("x = 1\n" * 600)
+    assert house.long_files(root) == []
+
+
+def test_this_repository_keeps_the_house_rules(capsys):
+    assert house.main([str(ROOT)]) == 0, capsys.readouterr().out

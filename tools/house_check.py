@@ -1,0 +1,317 @@
+#!/usr/bin/env python3
+"""The house check of lpvid: no import cycle among its modules, no long source file.
+
+Usage::
+
+    python3 tools/house_check.py [PROJECT_ROOT]    (default: the current directory)
+
+Two rules, both about how the code is laid out rather than what it does:
+
+- **No import cycle** among the modules of ``python/lpvid``. Every import
+  counts: at module level, inside a function (a deferred import), and under
+  ``if TYPE_CHECKING:`` (an import made only for a type hint is still a tie
+  between two modules). A package's ``__init__.py`` is a module like any
+  other: ``from lpvid.initial import x`` ties the importer to
+  ``lpvid/initial/__init__.py``, and so does ``from lpvid.initial.smile
+  import x`` (besides ``lpvid.initial.smile``) when the importer is not in
+  ``lpvid.initial`` itself, because Python runs the package's
+  ``__init__.py`` first. Inside a package its own ``__init__.py`` is not
+  counted (or every package that re-exports its modules would be a cycle);
+  nor is the top package's, which every module lies in. A compiled module
+  is known by its type stub (``_core.pyi``).
+- **No source file over 500 lines**: ``python/lpvid/**/*.py`` and
+  ``rust/**/*.rs`` (tests and benches are not counted).
+
+Prints every cycle (the modules of one strongly connected component of the
+import graph, with one closed path through them) and every long file, then a
+summary line. Exit status 0 when there are none, 1 otherwise.
+
+Uses only the standard library, so that it runs before anything is installed.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+__all__ = [
+    "LIMIT",
+    "cycles",
+    "import_graph",
+    "imports_of",
+    "long_files",
+    "main",
+    "module_names",
+    "one_cycle",
+]
+
+#: Most lines a source file may have.
+LIMIT = 500
+
+
+def module_names(package: Path) -> dict[str, Path]:
+    """Every module of a package, by dotted name.
+
+    Parameters
+    ----------
+    package : Path
+        The package's folder (the one holding its ``__init__.py``); its
+        name is the first part of every dotted name.
+
+    Returns
+    -------
+    dict of str to Path
+        Dotted module name to file; a (sub)package is named by its folder
+        and maps to its ``__init__.py``. A compiled module is known by its
+        type stub (``_core.pyi``), which stands for it.
+    """
+    names: dict[str, Path] = {}
+    sources = [*package.rglob("*.py"), *package.rglob("*.pyi")]
+    for path in sorted(sources, key=lambda p: (p.suffix == ".pyi", p)):
+        parts = list(path.relative_to(package.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        names.setdefault(".".join(parts), path)
+    return names
+
+
+def _target(name: str, modules: Iterable[str]) -> str | None:
+    """The longest known module that ``name`` is or lies inside, if any."""
+    known = set(modules)
+    parts = name.split(".")
+    for end in range(len(parts), 0, -1):
+        candidate = ".".join(parts[:end])
+        if candidate in known:
+            return candidate
+    return None
+
+
+def imports_of(source: str, here: str, is_package: bool, modules: Iterable[str]) -> set[str]:
+    """The package's modules that one module imports, wherever the import stands.
+
+    Parameters
+    ----------
+    source : str
+        The module's source code.
+    here : str
+        Its dotted name.
+    is_package : bool
+        Whether it is a package's ``__init__.py`` (relative imports then
+        start from the package itself).
+    modules : iterable of str
+        The dotted names of all modules of the package.
+
+    Returns
+    -------
+    set of str
+        The modules imported, at module level, inside functions and classes,
+        and under ``if TYPE_CHECKING:`` alike; never ``here`` itself. An
+        import of a module inside a package that ``here`` is not part of
+        also counts that package (Python runs its ``__init__.py`` first).
+    """
+    known = set(modules)
+    package = here.split(".") if is_package else here.split(".")[:-1]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                target = _target(alias.name, known)
+                if target is not None:
+                    found.add(target)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                start = package[: len(package) - (node.level - 1)]
+                base = ".".join(start + ([base] if base else []))
+            for alias in node.names:
+                sub = f"{base}.{alias.name}"
+                target = sub if sub in known else _target(base, known)
+                if target is not None:
+                    found.add(target)
+    # Importing a module runs the packages it lies in first: a module outside
+    # a package that imports one of its modules depends on its __init__.py too.
+    for target in list(found):
+        parts = target.split(".")
+        for end in range(1, len(parts)):
+            package_name = ".".join(parts[:end])
+            if package_name in known and not here.startswith(package_name + "."):
+                found.add(package_name)
+    found.discard(here)
+    return found
+
+
+def import_graph(package: Path) -> dict[str, set[str]]:
+    """Each module of a package, with the package's modules it imports.
+
+    Parameters
+    ----------
+    package : Path
+        The package's folder.
+
+    Returns
+    -------
+    dict of str to set of str
+        Edges ``importer -> imported`` (see :func:`imports_of`).
+    """
+    names = module_names(package)
+    return {
+        name: imports_of(path.read_text(encoding="utf-8"), name, path.name == "__init__.py", names)
+        for name, path in names.items()
+    }
+
+
+def cycles(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan).
+
+    Parameters
+    ----------
+    graph : mapping of str to iterable of str
+        Edges ``importer -> imported``.
+
+    Returns
+    -------
+    list of list of str
+        Each component's modules, sorted; the components sorted by their
+        first module. Empty when the graph has no cycle.
+    """
+    edges = {v: sorted(set(ws)) for v, ws in graph.items()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    # Iterative, so that a deep import chain cannot hit the recursion limit.
+    for root in sorted(edges):
+        if root in index:
+            continue
+        work: list[tuple[str, int]] = [(root, 0)]
+        while work:
+            v, i = work.pop()
+            if i == 0:
+                index[v] = low[v] = len(index)
+                stack.append(v)
+                on_stack.add(v)
+            succ = edges.get(v, [])
+            if i < len(succ):
+                work.append((v, i + 1))
+                w = succ[i]
+                if w not in index:
+                    work.append((w, 0))
+                elif w in on_stack:
+                    low[v] = min(low[v], index[w])
+                continue
+            if low[v] == index[v]:
+                comp: list[str] = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp.append(w)
+                    if w == v:
+                        break
+                if len(comp) > 1:
+                    found.append(sorted(comp))
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[v])
+    return sorted(found)
+
+
+def one_cycle(graph: Mapping[str, Iterable[str]], component: list[str]) -> list[str]:
+    """One closed import path through a component, from its first module back to it.
+
+    Parameters
+    ----------
+    graph : mapping of str to iterable of str
+        Edges ``importer -> imported``.
+    component : list of str
+        The modules of one strongly connected component (see :func:`cycles`).
+
+    Returns
+    -------
+    list of str
+        ``[m0, m1, ..., m0]``: each module imports the next (a shortest
+        such path, found breadth first inside the component).
+    """
+    inside = set(component)
+    start = component[0]
+    came: dict[str, str] = {}
+    frontier = [start]
+    while frontier:
+        following: list[str] = []
+        for v in frontier:
+            for w in sorted(set(graph.get(v, ())) & inside):
+                if w == start:
+                    path = [v]
+                    while path[-1] != start:
+                        path.append(came[path[-1]])
+                    return [start, *reversed(path[:-1]), start] if v != start else [start, start]
+                if w not in came:
+                    came[w] = v
+                    following.append(w)
+        frontier = following
+    return [start]
+
+
+def long_files(root: Path, limit: int = LIMIT) -> list[tuple[Path, int]]:
+    """The source files of the project that have more than ``limit`` lines.
+
+    Parameters
+    ----------
+    root : Path
+        The project's root: ``python/lpvid/**/*.py`` and ``rust/**/*.rs``
+        below it are counted.
+    limit : int
+        Most lines a file may have.
+
+    Returns
+    -------
+    list of (Path, int)
+        Each long file (relative to ``root``) and its number of lines.
+    """
+    files = sorted([*(root / "python" / "lpvid").rglob("*.py"), *(root / "rust").rglob("*.rs")])
+    out: list[tuple[Path, int]] = []
+    for path in files:
+        with path.open(encoding="utf-8") as handle:
+            count = sum(1 for _ in handle)
+        if count > limit:
+            out.append((path.relative_to(root), count))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Check a project and print what breaks the house rules.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program name: at most a project root
+        (default: the current directory). None: ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        0 when there is no cycle and no long file, 1 otherwise.
+    """
+    args = sys.argv[1:] if argv is None else argv
+    root = Path(args[0] if args else ".").resolve()
+    package = root / "python" / "lpvid"
+    if not (package / "__init__.py").is_file():
+        print(f"house check: no package at {package}", file=sys.stderr)
+        return 1
+    graph = import_graph(package)
+    found = cycles(graph)
+    for component in found:
+        print(f"import cycle: {' -> '.join(one_cycle(graph, component))}")
+        if len(component) > len(set(one_cycle(graph, component))):
+            print(f"  (all of: {', '.join(component)})")
+    long = long_files(root)
+    for path, count in long:
+        print(f"long file: {path} {count} lines (limit {LIMIT})")
+    print(f"house: {len(found)} import cycle(s), {len(long)} file(s) over {LIMIT} lines")
+    return 1 if found or long else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
