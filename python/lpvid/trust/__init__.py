@@ -34,9 +34,8 @@ The package lies on both sides of :mod:`lpvid.fit`, one way: ``ranges``,
 ``lyapunov``, ``stability``, ``enforce``, ``covariance`` and ``design`` do
 not use the fits, and :mod:`lpvid.fit` imports ``enforce`` for
 ``stable=True``; ``refit``, ``steps`` and ``nextpoints`` depend on the fits
-(``nextpoints`` through :mod:`lpvid.identified`). No
-module of the first group imports one of the second, and this file imports
-only the first group.
+(``nextpoints`` through :mod:`lpvid.identified`). No module of the first
+group imports one of the second, and this file imports only the first group.
 """
 
 from lpvid.trust.covariance import Covariance, band_radius
