@@ -158,3 +158,11 @@ def npz_arrays(path: str | os.PathLike[str]) -> dict[str, Any]:
         raise ValueError(
             f"{p.name}: not a readable .npz file ({type(exc).__name__}: {exc})"
         ) from exc
+
+
+def read_arrays(reader: Callable[[Path], dict[str, Any]], path: Path) -> dict[str, Any]:
+    """``reader(path)``, its ValueError naming the ``path`` argument."""
+    try:
+        return reader(path)
+    except ValueError as exc:
+        raise ValueError(f"path: {exc}") from exc

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
-from lpvid._files import mat_variables, npz_arrays, write_atomic
+from lpvid._files import mat_variables, npz_arrays, read_arrays, write_atomic
 from lpvid.readers import read_experiment
 from lpvid.schedule import scheduling_range
 
@@ -188,7 +188,7 @@ class FrfData:
         return scheduling_range(self.p)
 
     def subset(self, points: Any) -> FrfData:
-        """Return the data of some scheduling points.
+        """Return the data of some scheduling points (at least one, none twice; not checked again).
 
         Parameters
         ----------
@@ -200,9 +200,17 @@ class FrfData:
         FrfData
 
         """
-        idx = np.arange(self.n_points)[points]
-        idx = np.atleast_1d(idx)
-        return FrfData(self.p[idx], self.freqs_hz, self.G[idx], self.sigma[idx], self.Ts)
+        idx = np.atleast_1d(np.arange(self.n_points)[points])
+        if idx.size == 0:
+            raise ValueError("p: needs at least one scheduling point")
+        if np.unique(idx).size != idx.size:
+            raise ValueError("p: scheduling values must be distinct (found a duplicate point)")
+        out = object.__new__(FrfData)
+        out.Ts, out.freqs_hz, out.provenance = self.Ts, self.freqs_hz, None
+        out.p, out.G, out.sigma = self.p[idx], self.G[idx], self.sigma[idx]
+        for arr in (out.p, out.G, out.sigma):
+            arr.setflags(write=False)
+        return out
 
     @classmethod
     def stack(cls, parts: Sequence[FrfData]) -> FrfData:
@@ -341,12 +349,10 @@ class FrfData:
         """
         p = Path(path)
         suffix = p.suffix.lower()
-        if suffix == ".npz":
-            raw = _read(npz_arrays, p)
-        elif suffix == ".mat":
-            raw = _read(mat_variables, p)
-        else:
+        reader = {".npz": npz_arrays, ".mat": mat_variables}.get(suffix)
+        if reader is None:
             raise ValueError(f"path: expected a .npz or .mat file, got {p.name!r}")
+        raw = read_arrays(reader, p)
         missing = [k for k in ("p", "freqs_hz", "G") if k not in raw]
         if missing:
             raise ValueError(f"path: {p.name} lacks the variables {', '.join(missing)}")
@@ -490,10 +496,3 @@ class FrfData:
             raise type(exc)(f"{Path(manifest).name}: {exc}") from exc
         data.provenance = exp.provenance
         return data
-
-
-def _read(reader: Any, path: Path) -> dict[str, Any]:
-    try:
-        return reader(path)
-    except ValueError as exc:
-        raise ValueError(f"path: {exc}") from exc
