@@ -37,10 +37,11 @@ from lpvid.measure import Multisine, estimate_frf, multisine
 from lpvid.memory import available_memory, fit_memory
 from lpvid.model import LpvModel
 from lpvid.pipeline import identify
+from lpvid.problem import Problem
 from lpvid.results import FitResult, L21Result, PathResult
 from lpvid.selected import GridRow, SelectResult
 from lpvid.selection import select
-from lpvid.settings import L21Settings
+from lpvid.settings import IdentifySettings, L21Settings, LmSettings, PathSettings, StartSettings
 from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls
 from lpvid.timedata import TimeData
 from lpvid.timefit import fit_time
@@ -61,19 +62,24 @@ __all__ = [
     "GridRow",
     "GroupNorms",
     "IdentifyResult",
+    "IdentifySettings",
     "L21Result",
     "L21Settings",
     "Legendre",
+    "LmSettings",
     "LocalModels",
     "LpvModel",
     "LyapunovCertificate",
     "Multisine",
     "OrderHints",
     "PathResult",
+    "PathSettings",
     "Polynomial",
+    "Problem",
     "SelectResult",
     "SingularModelError",
     "StabilityReport",
+    "StartSettings",
     "Suggestion",
     "TimeCost",
     "TimeData",

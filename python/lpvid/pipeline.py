@@ -14,40 +14,35 @@ from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from lpvid._checks import positive_float, positive_int, real_array, same_sample_time
 from lpvid._spread import check_executor
 from lpvid._threads import single_blas
 from lpvid.basis import Basis
-from lpvid.capacity import check_order
 from lpvid.data import FrfData
 from lpvid.errors import logger
 from lpvid.fit import fit_nls, raise_if_interrupted, warn_if_unconverged
 from lpvid.identified import IdentifyResult, PathEntry, path_entry
-from lpvid.initial.candidates import ROUTES, initial_candidates
+from lpvid.initial.candidates import candidates_of
 from lpvid.initial.choice import choose
-from lpvid.initial.local import identify_lti
-from lpvid.judge import identify_range, noise_slack, tied
+from lpvid.initial.local import local_models
+from lpvid.judge import noise_slack, tied
 from lpvid.layout import strictly_proper
 from lpvid.memory import check_pipeline
 from lpvid.pathfit import run_path
+from lpvid.problem import Problem, check_validation, problem_of
 from lpvid.results import PathResult
-from lpvid.settings import L21Settings
-from lpvid.timecost import check_time_data
+from lpvid.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
 from lpvid.trust.steps import finish, stable_fit
 
 __all__ = [
     "DEFAULT_GAMMAS",
     "PathEntry",
     "IdentifyResult",
+    "Problem",
     "check_gammas",
     "check_validation",
     "identify",
 ]
-
-#: Default sweep of the (normalised) regularisation weight, largest first.
-DEFAULT_GAMMAS = (1e-1, 3e-2, 1e-2, 3e-3, 1e-3)
 
 Progress = Callable[[str], Any]
 
@@ -56,31 +51,6 @@ def _say(progress: Progress | None, message: str) -> None:
     logger.info(message)
     if progress is not None:
         progress(message)
-
-
-def check_validation(data: FrfData, validation: Any) -> FrfData | None:
-    """Validation data of :func:`identify`, checked against the identification data."""
-    if validation is None:
-        return None
-    if not isinstance(validation, FrfData):
-        raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
-
-    def sizes(d: FrfData) -> str:
-        return f"{d.n_outputs} outputs x {d.n_inputs} inputs, {d.n_params} scheduling parameter(s)"
-
-    if sizes(validation) != sizes(data):
-        raise ValueError(f"validation: has {sizes(validation)}; the data have {sizes(data)}")
-    if not same_sample_time(validation.Ts, data.Ts):
-        raise ValueError(f"validation: Ts={validation.Ts} differs from data's Ts={data.Ts}")
-    return validation
-
-
-def check_gammas(gammas: Sequence[float] | None) -> NDArray[np.float64]:
-    """The regularisation weights of :func:`identify`, checked (default :data:`DEFAULT_GAMMAS`)."""
-    gs = real_array(DEFAULT_GAMMAS if gammas is None else gammas, "gammas", ndim=1)
-    if gs.size == 0 or np.any(gs <= 0):
-        raise ValueError("gammas: needs at least one value, all > 0")
-    return gs
 
 
 def _knee(entries: list[PathEntry]) -> tuple[int, str]:
@@ -137,9 +107,9 @@ def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
 
 @single_blas
 def identify(
-    data: FrfData,
-    order: int,
-    basis: Basis,
+    data: FrfData | Problem,
+    order: int | None = None,
+    basis: Basis | None = None,
     gammas: Sequence[float] | None = None,
     validation: FrfData | None = None,
     fixed: Any = None,
@@ -299,47 +269,105 @@ def identify(
         of growth (:func:`lpvid.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
-    if not isinstance(data, FrfData):
-        raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
-    if not isinstance(basis, Basis):
-        raise TypeError(f"basis: expected an lpvid basis, got {type(basis).__name__}")
-    n = positive_int(order, "order")
-    validation = check_validation(data, validation)
-    gs = check_gammas(gammas)
-    tol = positive_float(tolerance, "tolerance", allow_zero=True)
-    time_cost = None if time_data is None else check_time_data(data, time_data)
+    if isinstance(data, Problem):
+        _refuse_beside(
+            order=order,
+            basis=basis,
+            gammas=gammas,
+            validation=validation,
+            fixed=fixed,
+            forms=forms,
+            routes=routes,
+            tolerance=tolerance,
+            settings=settings,
+            time_data=time_data,
+            stable=stable,
+            refit=refit,
+        )
+        problem = data
+    else:
+        problem = problem_of(
+            data,
+            order,  # type: ignore[arg-type]
+            basis,  # type: ignore[arg-type]
+            gammas,
+            validation,
+            fixed,
+            forms=forms,
+            routes=routes,
+            tolerance=tolerance,
+            settings=settings,
+            time_data=time_data,
+            stable=stable,
+            refit=refit,
+        )
     executor = check_executor(executor)
-    l21 = L21Settings.of(settings if settings is not None else L21Settings(max_outer=10))
-    if data.n_points < len(basis) + 1:
-        raise ValueError(
-            f"basis: {len(basis)} basis functions need at least {len(basis) + 1} scheduling "
-            f"points, the data have {data.n_points}"
+    return _run(problem, progress=progress, executor=executor, t0=t0)
+
+
+#: identify's arguments that a Problem holds, with their defaults.
+_HELD = dict(
+    order=None,
+    basis=None,
+    gammas=None,
+    validation=None,
+    fixed=None,
+    forms=None,
+    routes=ROUTES,
+    tolerance=0.1,
+    settings=None,
+    time_data=None,
+    stable=False,
+    refit=True,
+)
+
+
+def _refuse_beside(**arguments: Any) -> None:
+    """Refuse the arguments a :class:`Problem` holds when one is given (each must be left out)."""
+    given = [
+        name
+        for name, value in arguments.items()
+        if value is not _HELD[name] and not (_HELD[name] is not None and value == _HELD[name])
+    ]
+    if given:
+        raise TypeError(
+            f"{', '.join(given)}: the problem holds these; give them to lpvid.Problem "
+            "(or problem.replace(...)), not beside it"
         )
-    if basis.n_params != data.n_params:
-        raise ValueError(
-            f"basis: takes {basis.n_params} scheduling parameter(s), the data have {data.n_params}"
-        )
-    check_order(n, basis, data, fixed)
-    check_pipeline("identify", data, n, basis, time_cost, refit)
+
+
+def _run(
+    problem: Problem, *, progress: Progress | None, executor: Executor | None, t0: float
+) -> IdentifyResult:
+    """The pipeline of :func:`identify` on a checked problem (nothing it holds is checked again)."""
+    data, n, basis, fixed = problem.data, problem.order, problem.basis, problem.fixed
+    validation, time_cost, p_range = problem.validation, problem.time_data, problem.p_range
+    settings, starts = problem.settings, problem.settings.starts
+    l21, tol, stable = settings.path.l21, settings.path.tolerance, settings.stable
+    gs = np.asarray(settings.path.gammas, dtype=float)
+    check_pipeline("identify", data, n, basis, time_cost, settings.refit)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
     t = time.perf_counter()
-    local = identify_lti(data, n, strictly_proper=strictly_proper(fixed), executor=executor)
+    local = local_models(data, n, strictly_proper=strictly_proper(fixed), executor=executor)
     timings["local_s"] = time.perf_counter() - t
 
-    _say(progress, f"initial models ({', '.join(routes)}), each refined by fit_nls")
+    _say(progress, f"initial models ({', '.join(starts.routes)}), each refined by fit_nls")
     t = time.perf_counter()
-    candidates = initial_candidates(
+    candidates = candidates_of(
         data,
         n,
         basis,
         fixed,
         validation=validation,
-        routes=routes,
-        forms=forms,
+        routes=starts.routes,
+        forms=starts.forms,
         local=local,
-        ftol=l21.ftol,
+        diagnosis=None,
+        max_iter=starts.max_iter,
+        ftol=starts.ftol,
+        halving=starts.halving,
         executor=executor,
     )
     if not candidates:
@@ -360,7 +388,6 @@ def identify(
         nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
         warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
         timings["nls_s"] += nls.timings["total_s"]
-    p_range = identify_range(start.start, data)
     if stable:
         nls = stable_fit(nls, data, fixed, l21.threshold, p_range, time_cost)
 
@@ -393,7 +420,7 @@ def identify(
         l21.threshold,
         validation=validation,
         validation_vnls=e.validation_vnls,
-        do_refit=refit,
+        do_refit=settings.refit,
         stable=stable,
         p_range=p_range,
         time_data=time_cost,

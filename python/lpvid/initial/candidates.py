@@ -31,7 +31,7 @@ from lpvid.initial.globalstart import (
     finish_global,
     global_runner,
 )
-from lpvid.initial.local import identify_lti
+from lpvid.initial.local import check_local_order, local_models
 from lpvid.initial.localmodels import LocalModels
 from lpvid.initial.race import Runner, Stage, race, run_out
 from lpvid.initial.smile import smile_candidates
@@ -40,11 +40,9 @@ from lpvid.layout import fixed_mask, strictly_proper
 from lpvid.model import LpvModel
 from lpvid.results import FitResult
 from lpvid.schedule import between_points
-from lpvid.settings import FTOL
+from lpvid.settings import FTOL, ROUTES
 
-__all__ = ["ROUTES", "Candidate", "initial_candidates"]
-
-ROUTES = ("plain", "continuation", "global")
+__all__ = ["ROUTES", "Candidate", "candidates_of", "initial_candidates"]
 
 
 @dataclass
@@ -266,12 +264,48 @@ def initial_candidates(
     if validation is not None and not isinstance(validation, FrfData):
         raise TypeError(f"validation: expected an FrfData, got {type(validation).__name__}")
     ftol = positive_float(ftol, "ftol", allow_zero=True)
+    if local is None:
+        check_local_order(n, data)
+    elif not isinstance(local, LocalModels):
+        raise TypeError(f"local: expected LocalModels, got {type(local).__name__}")
+    return candidates_of(
+        data,
+        n,
+        basis,
+        fixed,
+        validation=validation,
+        routes=routes,
+        forms=forms,
+        local=local,
+        diagnosis=diagnosis,
+        max_iter=max_iter,
+        ftol=ftol,
+        halving=halving,
+        executor=executor,
+    )
+
+
+def candidates_of(
+    data: FrfData,
+    n: int,
+    basis: Basis,
+    fixed: Any,
+    *,
+    validation: FrfData | None,
+    routes: Sequence[str],
+    forms: Sequence[str] | None,
+    local: LocalModels | None,
+    diagnosis: Consistency | None,
+    max_iter: int,
+    ftol: float,
+    halving: bool,
+    executor: Executor | None,
+) -> list[Candidate]:
+    """:func:`initial_candidates` on checked arguments (checked there or by a Problem)."""
     proper = strictly_proper(fixed)
     t = time.perf_counter()
     if local is None:
-        local = identify_lti(data, n, strictly_proper=proper, executor=executor)
-    elif not isinstance(local, LocalModels):
-        raise TypeError(f"local: expected LocalModels, got {type(local).__name__}")
+        local = local_models(data, n, strictly_proper=proper, executor=executor)
     local_s = time.perf_counter() - t
     runners: list[tuple[Runner, float]] = []  # with the time spent building the start
     # The diagnosis and the best-determined point serve the continuation and

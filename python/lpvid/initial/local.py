@@ -21,7 +21,7 @@ from lpvid.initial.localmodels import LocalModels, is_stable
 from lpvid.initial.subspace import fd_subspace, max_order
 from lpvid.model import LpvModel
 
-__all__ = ["identify_lti"]
+__all__ = ["check_local_order", "identify_lti", "local_models"]
 
 
 @single_blas
@@ -98,6 +98,27 @@ def identify_lti(
     if not isinstance(data, FrfData):
         raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
     n = positive_int(order, "order")
+    check_local_order(n, data)
+    max_iter = positive_int(max_iter, "max_iter")
+    if not (isinstance(continuation, bool) or continuation == "auto"):
+        raise ValueError(f"continuation: expected True, False or 'auto', got {continuation!r}")
+    if continuation is not False and not refine:
+        raise ValueError("continuation: a continuation refines the models; it needs refine=True")
+    return local_models(
+        data,
+        n,
+        strictly_proper=strictly_proper,
+        stable=stable,
+        refine=refine,
+        n_rows=n_rows,
+        max_iter=max_iter,
+        continuation=continuation,
+        executor=executor,
+    )
+
+
+def check_local_order(n: int, data: FrfData) -> None:
+    """Refuse an order beyond what the subspace step can estimate from each point's lines."""
     F, l, r = data.n_lines, data.n_outputs, data.n_inputs
     limit = max_order(F, l, r)
     if n > limit:
@@ -105,11 +126,23 @@ def identify_lti(
             f"order: {n} exceeds what the data support ({F} lines per point, {l} outputs x "
             f"{r} inputs allow at most order {limit})"
         )
-    max_iter = positive_int(max_iter, "max_iter")
-    if not (isinstance(continuation, bool) or continuation == "auto"):
-        raise ValueError(f"continuation: expected True, False or 'auto', got {continuation!r}")
-    if continuation is not False and not refine:
-        raise ValueError("continuation: a continuation refines the models; it needs refine=True")
+
+
+def local_models(
+    data: FrfData,
+    n: int,
+    *,
+    strictly_proper: bool = False,
+    stable: bool = True,
+    refine: bool = True,
+    n_rows: int | None = None,
+    max_iter: int = 100,
+    continuation: bool | str = False,
+    executor: Executor | None = None,
+) -> LocalModels:
+    """:func:`identify_lti` on arguments already checked (by it, or by a :class:`lpvid.Problem`)."""
+    F, r = data.n_lines, data.n_inputs
+    l = data.n_outputs
     rows = _row_choices(n, F, r, n_rows)
     how = (n, rows, stable, strictly_proper, refine, max_iter)
     points = [(data.subset([q]), *how) for q in range(data.n_points)]

@@ -30,11 +30,10 @@ from lpvid.initial.coherent import (
 from lpvid.initial.localmodels import LocalModels, local_p, lti_models
 from lpvid.model import LpvModel
 from lpvid.schedule import model_range
+from lpvid.settings import FORMS
 
 __all__ = ["FORMS", "smile", "smile_candidates"]
 
-#: The coherent forms :func:`smile` offers, in the order ``"auto"`` tries them.
-FORMS = ("observability", "controllability", "modal", "modal_input", "pairwise")
 
 Ss = tuple[NDArray[np.float64], ...]
 
