@@ -80,6 +80,13 @@ def positive_float(value: Any, name: str, allow_zero: bool = False) -> float:
     return v
 
 
+def flag(value: Any, name: str) -> bool:
+    """Return ``value`` as a bool (a Python or numpy bool only), or raise naming ``name``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected True or False, got {type(value).__name__}")
+    return bool(value)
+
+
 def sample_time(Ts: Any) -> float | None:
     """Validate a sample time: None (continuous time) or a positive number."""
     if Ts is None:

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from lpvid import _core
-from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._checks import flag, positive_float, real_array
 from lpvid._spread import stop_flag
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
@@ -22,7 +22,7 @@ from lpvid.layout import free_mask
 from lpvid.memory import check_fit
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result, PathResult
-from lpvid.settings import L21Settings
+from lpvid.settings import L21Settings, LmSettings
 from lpvid.similarity import pointwise_similarity_directions, similarity_directions
 from lpvid.timecost import combined_problem
 from lpvid.trust.enforce import run_stable
@@ -133,14 +133,8 @@ def warn_if_unconverged(result: FitResult, what: str, stacklevel: int = 3) -> bo
 def lm_settings(
     max_iter: int, xtol: float, ftol: float, gtol: float, lambda0: float
 ) -> dict[str, Any]:
-    """The Levenberg-Marquardt settings as the core reads them, checked."""
-    return dict(
-        max_iter=positive_int(max_iter, "max_iter"),
-        xtol=positive_float(xtol, "xtol", allow_zero=True),
-        ftol=positive_float(ftol, "ftol", allow_zero=True),
-        gtol=positive_float(gtol, "gtol", allow_zero=True),
-        lambda0=positive_float(lambda0, "lambda0"),
-    )
+    """The Levenberg-Marquardt settings as the core reads them, checked (:class:`LmSettings`)."""
+    return LmSettings(max_iter, xtol, ftol, gtol, lambda0).to_core()
 
 
 def fit_nls(
@@ -148,11 +142,11 @@ def fit_nls(
     data: FrfData,
     fixed: Any = None,
     *,
-    max_iter: int = 100,
-    xtol: float = 1e-10,
-    ftol: float = 1e-10,
-    gtol: float = 0.0,
-    lambda0: float = 1e-2,
+    max_iter: int = LmSettings.max_iter,
+    xtol: float = LmSettings.xtol,
+    ftol: float = LmSettings.ftol,
+    gtol: float = LmSettings.gtol,
+    lambda0: float = LmSettings.lambda0,
     callback: Callback | None = None,
     warn: bool = True,
     time_data: Any = None,
@@ -235,17 +229,11 @@ def fit_nls(
     return result
 
 
-def _check_flag(value: Any, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name}: expected True or False, got {type(value).__name__}")
-    return bool(value)
-
-
 def _pinned(
     model: LpvModel, data: FrfData, free: np.ndarray, pinned: Any
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
     """The flat directions a pinned fit keeps its steps off, over the free parameters."""
-    if not _check_flag(pinned, "pinned"):
+    if not flag(pinned, "pinned"):
         return None
     W = pointwise_similarity_directions(model, data.p)
     if W.shape[1] == 0:
@@ -258,7 +246,7 @@ def _stable_run(
     model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
 ) -> dict[str, Any]:
     """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
-    if not _check_flag(stable, "stable"):
+    if not flag(stable, "stable"):
         return run(None)
     return run_stable(model, p_range, run)
 
@@ -472,14 +460,14 @@ def l21_path(
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
-    pin = _check_flag(pinned, "pinned")
+    pin = flag(pinned, "pinned")
     check_fit("l21_path", model, data, free, "l21", time_data, pin)
 
     def one(m: LpvModel, g: float, check: Any = None) -> dict[str, Any]:
         flat = _pinned(m, data, free, pin)
         return _core.fit_l21(problem, m.theta, sup, free, s.to_core(g), monitor, check, flat)
 
-    if _check_flag(stable, "stable"):
+    if flag(stable, "stable"):
         raws = _sweep(model, gs, lambda m, g: run_stable(m, rng, lambda c: one(m, g, c)))
     elif pin:
         raws = _sweep(model, gs, one)

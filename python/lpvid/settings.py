@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._checks import flag, positive_float, positive_int, real_array
 
 __all__ = [
     "DEFAULT_GAMMAS",
@@ -160,12 +160,6 @@ def _replace(settings: Any, what: str, changes: dict[str, Any]) -> Any:
         if key not in known:
             raise TypeError(f"{key}: not a setting of {what}; expected one of {sorted(known)}")
     return dataclasses.replace(settings, **changes)
-
-
-def _flag(value: Any, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name}: expected True or False, got {type(value).__name__}")
-    return bool(value)
 
 
 def _names(value: Any, name: str, known: tuple[str, ...], what: str) -> tuple[str, ...]:
@@ -323,7 +317,7 @@ class StartSettings:
         object.__setattr__(self, "forms", _names(forms, "forms", FORMS, "coherent form"))
         object.__setattr__(self, "max_iter", positive_int(self.max_iter, "max_iter"))
         object.__setattr__(self, "ftol", positive_float(self.ftol, "ftol", allow_zero=True))
-        object.__setattr__(self, "halving", _flag(self.halving, "halving"))
+        object.__setattr__(self, "halving", flag(self.halving, "halving"))
 
     def replace(self, **changes: Any) -> StartSettings:
         """A copy with some fields changed; an unknown name is a TypeError naming it."""
@@ -365,8 +359,8 @@ class IdentifySettings:
             raise TypeError(f"path: expected a PathSettings, got {type(self.path).__name__}")
         if not isinstance(self.starts, StartSettings):
             raise TypeError(f"starts: expected a StartSettings, got {type(self.starts).__name__}")
-        object.__setattr__(self, "stable", _flag(self.stable, "stable"))
-        object.__setattr__(self, "refit", _flag(self.refit, "refit"))
+        object.__setattr__(self, "stable", flag(self.stable, "stable"))
+        object.__setattr__(self, "refit", flag(self.refit, "refit"))
 
     def replace(self, **changes: Any) -> IdentifySettings:
         """A copy with some fields changed; an unknown name is a TypeError naming it."""

@@ -1,0 +1,160 @@
+"""lpvid.Problem: an identification problem checked once, and identify on it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import lpvid
+import lpvid.testing
+from lpvid.judge import identify_range
+from lpvid.settings import DEFAULT_GAMMAS, FORMS, ROUTES
+
+
+@pytest.fixture(scope="module")
+def small():
+    rng = np.random.default_rng(0)
+    true = lpvid.testing.modal_lpv([[10.0, 3.0]])  # order 2, linear in p
+    f = np.linspace(2, 30, 40)
+    data = lpvid.testing.noisy_data(true, [0.0, 0.5, 1.0], f, rng, 0.01)
+    val = lpvid.testing.noisy_data(true, [0.25, 0.75], f, rng, 0.01)
+    return data, val, lpvid.Polynomial(1, domain=(0.0, 1.0))
+
+
+def test_identify_on_a_problem_is_identify_on_its_arguments(small):
+    data, val, basis = small
+    kw = dict(gammas=[0.1, 0.01], validation=val, fixed={"D": True}, tolerance=0.05)
+    direct = lpvid.identify(data, 2, basis, **kw)
+    settings = lpvid.IdentifySettings(path=lpvid.PathSettings(gammas=(0.1, 0.01), tolerance=0.05))
+    problem = lpvid.Problem(data, 2, basis, validation=val, fixed={"D": True}, settings=settings)
+    via = lpvid.identify(problem)
+    assert via.model.theta.tobytes() == direct.model.theta.tobytes()
+    assert [e.model.theta.tobytes() for e in via.entries] == [
+        e.model.theta.tobytes() for e in direct.entries
+    ]
+    assert (via.chosen, via.reason, via.start) == (direct.chosen, direct.reason, direct.start)
+    # the range the problem holds is the one identify judged on before it held one
+    assert problem.p_range == identify_range(direct.initial, data)
+
+
+def test_identify_checks_the_data_once(small, monkeypatch):
+    data, val, basis = small
+    made = {"FrfData": 0, "Problem": 0}
+    frf_init, problem_init = lpvid.FrfData.__init__, lpvid.Problem.__post_init__
+
+    def counted_frf(self, *args, **kwargs):
+        made["FrfData"] += 1
+        frf_init(self, *args, **kwargs)
+
+    def counted_problem(self):
+        made["Problem"] += 1
+        problem_init(self)
+
+    monkeypatch.setattr(lpvid.FrfData, "__init__", counted_frf)
+    monkeypatch.setattr(lpvid.Problem, "__post_init__", counted_problem)
+    lpvid.identify(data, 2, basis, gammas=[0.1], validation=val)
+    # one check of everything; no stage rebuilds (and re-checks) the data,
+    # the local models' subsets of one point included
+    assert made == {"FrfData": 0, "Problem": 1}
+    problem = lpvid.Problem(data, 2, basis, validation=val)
+    made.update(FrfData=0, Problem=0)
+    lpvid.identify(problem)
+    assert made == {"FrfData": 0, "Problem": 0}
+
+
+def _message(exc_type, call):
+    with pytest.raises(exc_type) as info:
+        call()
+    return str(info.value)
+
+
+@pytest.mark.parametrize(
+    "args, kw, problem_kw, exc_type",
+    [
+        ((2, "poly"), {}, {}, TypeError),
+        ((0, None), {}, {}, ValueError),
+        ((2, lpvid.Polynomial(3, domain=(0, 1))), {}, {}, ValueError),
+        ((99, None), {}, {}, ValueError),
+        ((2, None), {"validation": "val"}, {"validation": "val"}, TypeError),
+        ((2, None), {"fixed": {"Q": True}}, {"fixed": {"Q": True}}, ValueError),
+        ((2, None), {"time_data": 3.0}, {"time_data": 3.0}, TypeError),
+    ],
+)
+def test_bad_input_is_refused_at_creation_with_identifys_message(
+    small, args, kw, problem_kw, exc_type
+):
+    data, _, basis = small
+    order, b = args[0], basis if args[1] is None else args[1]
+    today = _message(exc_type, lambda: lpvid.identify(data, order, b, **kw))
+    assert _message(exc_type, lambda: lpvid.Problem(data, order, b, **problem_kw)) == today
+    assert today.split(":")[0] in {"basis", "order", "validation", "fixed", "time_data"}
+
+
+def test_bad_settings_refused_with_identifys_message(small):
+    data, _, basis = small
+    cases = [
+        (dict(gammas=[0.1, -1]), lambda: lpvid.PathSettings(gammas=(0.1, -1))),
+        (dict(tolerance=-1.0), lambda: lpvid.PathSettings(tolerance=-1.0)),
+        (dict(routes=("plain", "nope")), lambda: lpvid.StartSettings(routes=("plain", "nope"))),
+        (dict(forms=["nope"]), lambda: lpvid.StartSettings(forms=["nope"])),
+        (dict(settings="fast"), lambda: lpvid.PathSettings(l21="fast")),
+    ]
+    for kw, make in cases:
+        with pytest.raises((ValueError, TypeError)) as today:
+            lpvid.identify(data, 2, basis, **kw)
+        with pytest.raises(type(today.value)) as now:
+            make()
+        assert str(now.value) == str(today.value)
+
+
+def test_no_argument_beside_a_problem(small):
+    data, _, basis = small
+    problem = lpvid.Problem(data, 2, basis)
+    with pytest.raises(TypeError, match=r"^gammas, stable: the problem holds these"):
+        lpvid.identify(problem, gammas=[0.1], stable=True)
+
+
+def test_defaults_in_one_place_and_visible(small):
+    data, _, basis = small
+    s = lpvid.Problem(data, 2, basis).settings
+    assert s.path.l21 == lpvid.L21Settings(max_outer=10)
+    assert s.path.gammas == DEFAULT_GAMMAS and s.path.tolerance == 0.1
+    assert (s.starts.routes, s.starts.forms, s.starts.max_iter) == (ROUTES, FORMS, 100)
+    assert s.starts.ftol == lpvid.L21Settings().ftol and s.starts.halving
+    assert (s.stable, s.refit) == (False, True)
+    assert lpvid.LmSettings().to_core() == dict(
+        max_iter=100, xtol=1e-10, ftol=1e-10, gtol=0.0, lambda0=1e-2
+    )
+    with pytest.raises(TypeError, match=r"^stable: expected True or False"):
+        lpvid.IdentifySettings(stable="yes")
+    with pytest.raises(TypeError, match=r"^gamma: not a setting of the path"):
+        lpvid.PathSettings().replace(gamma=0.1)
+    with pytest.raises(TypeError, match=r"^max_iter: expected an integer"):
+        lpvid.LmSettings(max_iter=1.5)
+
+
+def test_replace_checks_again_and_derives_the_range_anew(small):
+    data, _, basis = small
+    problem = lpvid.Problem(data, 2, basis)
+    wider = problem.replace(p_range=(-1.0, 2.0))
+    assert wider.p_range == [-1.0, 2.0] and problem.p_range == [0.0, 1.0]
+    assert wider.replace(data=data.subset([0, 1, 2])).p_range == [0.0, 1.0]
+    with pytest.raises(ValueError, match=r"^order: expected an integer >= 1"):
+        problem.replace(order=0)
+    with pytest.raises(TypeError, match=r"^n: not a field of Problem"):
+        problem.replace(n=3)
+    assert problem.mask.shape == problem.replace(fixed={"D": True}).mask.shape
+
+
+def test_subset_takes_checked_points_as_they_are(small):
+    data, _, _ = small
+    part = data.subset([2, 0])
+    rebuilt = lpvid.FrfData(data.p[[2, 0]], data.freqs_hz, data.G[[2, 0]], data.sigma[[2, 0]])
+    for name in ("p", "freqs_hz", "G", "sigma"):
+        assert getattr(part, name).tobytes() == getattr(rebuilt, name).tobytes()
+        assert not getattr(part, name).flags.writeable
+    assert part.Ts == data.Ts and part.provenance is None
+    with pytest.raises(ValueError, match=r"^p: scheduling values must be distinct"):
+        data.subset([0, 0])
+    with pytest.raises(ValueError, match=r"^p: needs at least one scheduling point"):
+        data.subset([])
