@@ -158,3 +158,14 @@ def test_subset_takes_checked_points_as_they_are(small):
         data.subset([0, 0])
     with pytest.raises(ValueError, match=r"^p: needs at least one scheduling point"):
         data.subset([])
+
+
+def test_select_on_a_problem_is_select_on_its_arguments(small):
+    data, val, basis = small
+    direct = lpvid.select(data, [2], [1], validation=val, gammas=[0.1])
+    settings = lpvid.IdentifySettings(path=lpvid.PathSettings(gammas=(0.1,)))
+    problem = lpvid.Problem(data, 2, basis, validation=val, settings=settings)
+    via = lpvid.select(problem, [2], [1])
+    assert via.model.theta.tobytes() == direct.model.theta.tobytes()
+    with pytest.raises(TypeError, match=r"^gammas: the problem holds these"):
+        lpvid.select(problem, [2], [1], gammas=[0.1])

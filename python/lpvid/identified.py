@@ -103,8 +103,12 @@ class IdentifyResult:
         unregularised fit, the path, V_NLS and the noise floors of
         :attr:`entries` are those of both costs summed.
     timings : dict
-        Seconds per stage: ``"local_s"`` (the local models), ``"smile_s"``
-        (the initial models and the race of the starts), ``"nls_s"`` (the
+        Seconds per stage: ``"local_s"`` (the plain local models),
+        ``"smile_s"`` (every route to an initial model, not SMILE alone:
+        the SMILE models from the plain local models, the local models by
+        continuation and their SMILE models, the global starts, the race
+        of all the starts by Levenberg-Marquardt and the choice of one),
+        ``"nls_s"`` (the
         chosen start's fits, within ``"smile_s"``), ``"path_s"``,
         ``"finish_s"`` (the refit, the covariance and the stability of the
         model returned), ``"total_s"``.

@@ -42,6 +42,7 @@ __all__ = [
     "check_gammas",
     "check_validation",
     "identify",
+    "refuse_beside",
 ]
 
 Progress = Callable[[str], Any]
@@ -163,10 +164,18 @@ def identify(
     the path and the choice run on that sum, each part weighted by its own
     noise.
 
+    Every argument but ``progress`` and ``executor`` goes into one
+    :class:`lpvid.Problem`, checked once before any work (``settings``
+    those of the path's l2,1 fits, default ``L21Settings(max_outer=10)``,
+    its ``ftol`` also that of the starts' fits; ``gammas``, ``tolerance``,
+    ``routes``, ``forms``, ``stable`` and ``refit`` as in
+    :class:`lpvid.IdentifySettings`); ``identify(problem)`` takes one made
+    beforehand, the other arguments then left out.
+
     Parameters
     ----------
-    data : FrfData
-        Identification data.
+    data : FrfData or Problem
+        Identification data, or the whole problem.
     order : int
         Number of states.
     basis : Basis
@@ -270,7 +279,7 @@ def identify(
     """
     t0 = time.perf_counter()
     if isinstance(data, Problem):
-        _refuse_beside(
+        refuse_beside(
             order=order,
             basis=basis,
             gammas=gammas,
@@ -322,7 +331,7 @@ _HELD = dict(
 )
 
 
-def _refuse_beside(**arguments: Any) -> None:
+def refuse_beside(**arguments: Any) -> None:
     """Refuse the arguments a :class:`Problem` holds when one is given (each must be left out)."""
     given = [
         name

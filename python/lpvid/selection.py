@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from lpvid._capture import collected
-from lpvid._checks import positive_float, positive_int
+from lpvid._checks import positive_int
 from lpvid._spread import POLL_S, check_executor
 from lpvid._threads import single_blas
 from lpvid.basis import Basis, Polynomial
@@ -33,8 +33,10 @@ from lpvid.identified import IdentifyResult
 from lpvid.initial.orders import order_hints
 from lpvid.layout import fixed_mask
 from lpvid.memory import pipeline_memory, runs_at_once
-from lpvid.pipeline import check_gammas, check_validation, identify
+from lpvid.pipeline import identify, refuse_beside
+from lpvid.problem import Problem, check_validation
 from lpvid.selected import GridRow, SelectResult, basis_label, choose_pair, free_in_use
+from lpvid.settings import DEFAULT_GAMMAS, IdentifySettings, PathSettings
 
 __all__ = ["held_out_points", "select"]
 
@@ -68,32 +70,36 @@ def _run(job: Callable[[], _Outcome]) -> _Outcome:
     return out
 
 
-def _identify_task(
-    data: FrfData,
-    order: int,
-    basis: Basis,
-    validation: FrfData | None,
-    gammas: Any,
-    fixed: Any,
-    tolerance: float,
-) -> _Outcome:
-    """One pair on all the data (runs where the executor puts it)."""
-    return _run(
-        lambda: _Outcome(
-            result=identify(data, order, basis, gammas, validation, fixed, tolerance=tolerance)
+@dataclass(frozen=True)
+class _Shared:
+    """What every identify run of the grid shares: the data and the settings."""
+
+    data: FrfData
+    validation: FrfData | None
+    time_data: Any
+    settings: IdentifySettings
+
+    def problem(self, order: int, basis: Basis, fixed: Any, point: int | None = None) -> Problem:
+        """The problem of one pair (checked in its task), without ``point`` when given."""
+        data, validation = self.data, self.validation
+        if point is not None:
+            data, validation = data.subset([q for q in range(data.n_points) if q != point]), None
+        return Problem(
+            data, order, basis, validation, fixed, self.time_data, settings=self.settings
         )
-    )
 
 
-def _held_out_task(
-    data: FrfData, point: int, order: int, basis: Basis, gammas: Any, fixed: Any, tolerance: float
-) -> _Outcome:
+def _identify_task(shared: _Shared, order: int, basis: Basis, fixed: Any) -> _Outcome:
+    """One pair on all the data (runs where the executor puts it)."""
+    return _run(lambda: _Outcome(result=identify(shared.problem(order, basis, fixed))))
+
+
+def _held_out_task(shared: _Shared, point: int, order: int, basis: Basis, fixed: Any) -> _Outcome:
     """One pair without scheduling point ``point``, judged at that point."""
 
     def job() -> _Outcome:
-        keep = [q for q in range(data.n_points) if q != point]
-        res = identify(data.subset(keep), order, basis, gammas, None, fixed, tolerance=tolerance)
-        out = data.subset([point])
+        res = identify(shared.problem(order, basis, fixed, point))
+        out = shared.data.subset([point])
         return _Outcome(vnls=vnls(res.model, out), floor=out.n_residuals)
 
     return _run(job)
@@ -291,7 +297,7 @@ def _fill(
 
 @single_blas
 def select(
-    data: FrfData,
+    data: FrfData | Problem,
     orders: Iterable[int],
     bases: Iterable[Basis | int],
     validation: FrfData | None = None,
@@ -342,8 +348,12 @@ def select(
 
     Parameters
     ----------
-    data : FrfData
-        Identification data.
+    data : FrfData or Problem
+        Identification data; or a :class:`lpvid.Problem`, whose data,
+        validation data, time records, fixed parameters and settings every
+        run of the grid takes (its order, basis and scheduling range are
+        not used: each pair has its own), ``validation``, ``gammas``,
+        ``fixed`` and ``tolerance`` then left out.
     orders : iterable of int
         Model orders to try.
     bases : iterable of Basis or int
@@ -405,12 +415,21 @@ def select(
 
     """
     t0 = time.perf_counter()
-    if not isinstance(data, FrfData):
-        raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
-    validation = check_validation(data, validation)
-    ns, bs = _orders(orders), _bases(bases, data)
-    check_gammas(gammas)
-    tol = positive_float(tolerance, "tolerance", allow_zero=True)
+    if isinstance(data, Problem):
+        refuse_beside(validation=validation, gammas=gammas, fixed=fixed, tolerance=tolerance)
+        problem = data
+        data, validation, fixed = problem.data, problem.validation, problem.fixed
+        ns, bs = _orders(orders), _bases(bases, data)
+        shared = _Shared(data, validation, problem.time_data, problem.settings)
+    else:
+        if not isinstance(data, FrfData):
+            raise TypeError(f"data: expected an FrfData, got {type(data).__name__}")
+        validation = check_validation(data, validation)
+        ns, bs = _orders(orders), _bases(bases, data)
+        gs = DEFAULT_GAMMAS if gammas is None else gammas
+        path = PathSettings(gammas=gs, tolerance=tolerance)
+        shared = _Shared(data, validation, None, IdentifySettings(path=path))
+    tol = shared.settings.path.tolerance
     executor = check_executor(executor)
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable, got {type(progress).__name__}")
@@ -421,14 +440,9 @@ def select(
     points = [] if validation is not None else held_out_points(data, bs)
     rule = "validation" if validation is not None else "held-out" if points else "noise floor"
     rows = [GridRow(order=n, basis=b) for n, b in pairs]
-    tasks = [
-        _Task(i, None, (data, n, b, validation, gammas, fixes[i], tol))
-        for i, (n, b) in enumerate(pairs)
-    ]
+    tasks = [_Task(i, None, (shared, n, b, fixes[i])) for i, (n, b) in enumerate(pairs)]
     tasks += [
-        _Task(i, q, (data, q, n, b, gammas, fixes[i], tol))
-        for i, (n, b) in enumerate(pairs)
-        for q in points
+        _Task(i, q, (shared, q, n, b, fixes[i])) for i, (n, b) in enumerate(pairs) for q in points
     ]
     _say(progress, f"{len(pairs)} pairs, {len(tasks)} identify runs; the pairs judged by {rule}")
     own = None
