@@ -228,6 +228,7 @@ def path_entry(
     validation: FrfData | None,
     threshold: float,
     time_cost: TimeCost | None = None,
+    *,
     pinned: bool = False,
 ) -> PathEntry:
     """The entry of ``fit`` (at ``gamma``) for the table of :func:`lpvid.identify`."""

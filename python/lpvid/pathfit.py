@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
+from dataclasses import dataclass, replace
 from typing import Any
 
 from lpvid._spread import Spread
@@ -59,24 +60,31 @@ def path_mode(
     return "guarded"
 
 
-def _judged(
-    start: LpvModel,
-    g: float,
-    pinned: bool,
-    data: FrfData,
-    settings: L21Settings,
-    fixed: Any,
-    validation: FrfData | None,
-    p_range: Any,
-    stable: bool,
-    time_cost: TimeCost | None,
-) -> tuple[L21Result, PathEntry]:
+@dataclass(frozen=True)
+class _Fit:
+    """How every fit of the path runs, warm or ``pinned``, and what judges it."""
+
+    data: FrfData
+    settings: L21Settings
+    fixed: Any
+    validation: FrfData | None
+    p_range: Any
+    stable: bool
+    time_cost: TimeCost | None
+    pinned: bool = False
+
+
+def _judged(start: LpvModel, g: float, how: _Fit) -> tuple[L21Result, PathEntry]:
     """The fit at ``g`` from ``start`` (warm or ``pinned``) and its path entry."""
-    fit = fit_l21(start, data, g, settings, fixed, warn=False, time_data=time_cost, pinned=pinned)
+    data, settings, fixed, time_cost = how.data, how.settings, how.fixed, how.time_cost
+    fit = fit_l21(
+        start, data, g, settings, fixed, warn=False, time_data=time_cost, pinned=how.pinned
+    )
     r = raise_if_interrupted(fit)
     threshold = settings.threshold
-    kept = stable_fit(r, data, fixed, threshold, p_range, time_cost) if stable else r
-    return r, path_entry(r.gamma, kept, data, validation, threshold, time_cost, pinned)
+    kept = stable_fit(r, data, fixed, threshold, how.p_range, time_cost) if how.stable else r
+    entry = path_entry(r.gamma, kept, data, how.validation, threshold, time_cost, pinned=how.pinned)
+    return r, entry
 
 
 def run_path(
@@ -113,16 +121,17 @@ def run_path(
     spread = Spread(executor)
     if mode != "guarded" or not spread.elsewhere:
         spread = Spread(None)  # each fit here, when taken
-    how = (data, settings, fixed, validation, p_range, stable, time_cost)
+    warm_fit = _Fit(data, settings, fixed, validation, p_range, stable=stable, time_cost=time_cost)
+    pinned_fit = replace(warm_fit, pinned=True)
     entries = [path_entry(0.0, nls, data, validation, settings.threshold, time_cost)]
     results: list[L21Result] = []
     current: FitResult = nls
     for g in gammas:
         try:
-            warm = spread.submit(_judged, current.model, g, False, *how)
+            warm = spread.submit(_judged, current.model, g, warm_fit)
             pinned = None
             if mode == "guarded":
-                pinned = spread.submit(_judged, current.model, g, True, *how)
+                pinned = spread.submit(_judged, current.model, g, pinned_fit)
             r, e = spread.take(warm)
             if pinned is not None:
                 assert e.validation_vnls is not None
