@@ -48,7 +48,11 @@ PY_TESTS = {
     "trust/lyapunov.py": ["tests/test_stability.py"],
     "trust/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
     "trust/refit.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
-    "trust/stability.py": ["tests/test_stability.py"],
+    "trust/stability.py": [
+        "tests/test_stability.py",
+        "tests/test_stable_fit.py",
+        "tests/test_stability_parts.py",
+    ],
     "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
     "selection.py": ["tests/test_select_rules.py", "tests/test_select.py"],
