@@ -80,6 +80,10 @@ STATUS.update({36: "timeout", -24: "timeout", 24: "timeout", 152: "timeout", 255
 STATUS.update({None: "not checked", 37: "caught by type check", -11: "segfault", -9: "segfault"})
 
 
+#: Every mutant's status after the last run or re-check, kept in the staging directory.
+STATUS_FILE = "lpvid-mutants.json"
+
+
 def _tests_for(module: str) -> list[str]:
     for key in (module, module.rsplit("/", 1)[0] + "/" if "/" in module else ""):
         if key in PY_TESTS:
@@ -130,6 +134,28 @@ def py_results(stage: Path) -> dict[str, dict[str, list[str]]]:
     return out
 
 
+def merged(
+    before: dict[str, dict[str, list[str]]], after: dict[str, dict[str, list[str]]]
+) -> dict[str, dict[str, list[str]]]:
+    """The whole module after a re-check: the mutants not run again keep their first status.
+
+    mutmut marks the mutants a re-check did not run as not checked; their
+    status from the first run still holds (the re-check only adds tests).
+    """
+    out: dict[str, dict[str, list[str]]] = {}
+    for name in sorted(set(before) | set(after)):
+        status = {k: s for s, keys in before.get(name, {}).items() for k in keys}
+        for s, keys in after.get(name, {}).items():
+            for k in keys:
+                if s != "not checked" or k not in status:
+                    status[k] = s
+        by: dict[str, list[str]] = {}
+        for k, s in sorted(status.items()):
+            by.setdefault(s, []).append(k)
+        out[name] = by
+    return out
+
+
 def _rate(by: dict[str, list[str]]) -> str:
     total = sum(len(v) for v in by.values())
     killed = len(by.get("killed", [])) + len(by.get("timeout", []))
@@ -147,8 +173,10 @@ def run_python(args: argparse.Namespace) -> int:
     stage = Path(args.stage) if args.stage else Path(tempfile.mkdtemp(prefix="lpvid-mutmut."))
     stage.mkdir(parents=True, exist_ok=True)
     again: list[str] = []
+    before: dict[str, dict[str, list[str]]] = {}
     if args.recheck:
-        before = py_results(stage)
+        saved = stage / STATUS_FILE
+        before = json.loads(saved.read_text()) if saved.exists() else py_results(stage)
         again = [k for by in before.values() for k in by.get("survived", [])]
         if not before:
             raise SystemExit(f"--recheck: no results in {stage} to re-check")
@@ -161,7 +189,8 @@ def run_python(args: argparse.Namespace) -> int:
             return 0
         cmd += again
     code = subprocess.run(cmd, cwd=stage).returncode
-    results = py_results(stage)
+    results = merged(before, py_results(stage)) if args.recheck else py_results(stage)
+    (stage / STATUS_FILE).write_text(json.dumps(results, indent=1))
     print()
     for name, by in results.items():
         print(f"{name}: {_rate(by)}")
