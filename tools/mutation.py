@@ -44,7 +44,7 @@ PY_TESTS = {
     "trust/covariance.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
     "trust/design.py": ["tests/test_nextpoints.py"],
     "trust/nextpoints.py": ["tests/test_nextpoints.py"],
-    "trust/enforce.py": ["tests/test_stable_fit.py"],
+    "trust/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
     "trust/lyapunov.py": ["tests/test_stability.py"],
     "trust/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
     "trust/refit.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
