@@ -228,3 +228,45 @@ pub(crate) fn seconds_since(t0: Instant) -> f64 {
 pub(crate) fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Stop;
+
+    const ALL: [Stop; 9] = [
+        Stop::StepSize,
+        Stop::CostChange,
+        Stop::Gradient,
+        Stop::Weights,
+        Stop::Settled,
+        Stop::MaxIterations,
+        Stop::Damping,
+        Stop::Interrupted,
+        Stop::NothingFree,
+    ];
+
+    /// A fit stopped by its iteration limit, by damping or by the caller is
+    /// not converged (result.converged is what users test); the others are.
+    #[test]
+    fn converged_only_where_a_criterion_was_met() {
+        for stop in ALL {
+            let expected = !matches!(
+                stop,
+                Stop::MaxIterations | Stop::Damping | Stop::Interrupted
+            );
+            assert_eq!(stop.converged(), expected, "{stop:?}");
+        }
+    }
+
+    /// Every stop has its own sentence, and a converged one says so first.
+    #[test]
+    fn messages_are_distinct_and_agree_with_converged() {
+        let messages: Vec<&str> = ALL.iter().map(|s| s.message()).collect();
+        for (i, (stop, m)) in ALL.iter().zip(&messages).enumerate() {
+            assert!(m.len() > 20, "{stop:?}: {m:?}");
+            assert!(!messages[..i].contains(m), "{stop:?} repeats {m:?}");
+            let says = m.starts_with("converged") || m.starts_with("nothing to fit");
+            assert_eq!(says, stop.converged(), "{stop:?}: {m:?}");
+        }
+    }
+}
