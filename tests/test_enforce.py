@@ -11,7 +11,14 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.trust.enforce import stabilised
+from lpvid.trust.enforce import (
+    BOX_POINTS,
+    CHECK_POINTS,
+    MAX_ROUNDS,
+    check_points,
+    run_stable,
+    stabilised,
+)
 
 BASIS = lpvid.Polynomial(1, domain=(-1.0, 1.0))
 
@@ -103,3 +110,85 @@ def test_discrete_scaling_is_the_promised_one():
     np.testing.assert_array_equal(s.C, m.C)
     rep = lpvid.stability(s, quadratic=False)
     assert rep.margin == pytest.approx(0.05, rel=1e-6)
+
+
+def _two_parameter() -> lpvid.LpvModel:
+    """Discrete time, A(p) = A0 + p1 A1 + p2 A2 over the box [-1, 1] x [0, 2]."""
+    basis = lpvid.Polynomial(1, domain=[(-1.0, 1.0), (0.0, 2.0)])
+    k = len(basis) + 1
+    A = np.zeros((k, 2, 2))
+    A[0] = [[0.5, 0.2], [-0.1, 0.4]]
+    A[1] = [[0.1, 0.0], [0.05, -0.1]]
+    A[2] = [[0.0, 0.1], [0.0, 0.15]]
+    B, C = np.ones((k, 2, 1)), np.ones((k, 1, 2))
+    return lpvid.LpvModel(A, B, C, basis=basis, Ts=1.0, p_range=[(-1.0, 1.0), (0.0, 2.0)])
+
+
+def _frozen_margins(model: lpvid.LpvModel, pts: np.ndarray) -> np.ndarray:
+    """1 - spectral radius of A(p) at every row of pts, by numpy."""
+    psi = model.basis(pts)
+    return np.array(
+        [
+            1.0 - np.max(np.abs(np.linalg.eigvals(model.A[0] + np.tensordot(s, model.A[1:], 1))))
+            for s in psi
+        ]
+    )
+
+
+def test_check_points_cover_the_box_of_two_parameters():
+    """Several parameters: the core checks a grid over the whole box, plus the extra points."""
+    m = _two_parameter()
+    pairs = [(-1.0, 1.0), (0.0, 2.0)]
+    n, r, l, _ = m.shape
+    points = check_points(m, pairs, [])
+    side = int(np.floor(np.sqrt(BOX_POINTS)))
+    assert len(points) == side * side
+    g = np.linspace(-1.0, 1.0, side)
+    h = np.linspace(0.0, 2.0, side)
+    grid = np.array([(a, b) for a in g for b in h])
+    got = np.sort(points.margins(n, r, l, m.theta))
+    np.testing.assert_allclose(got, np.sort(_frozen_margins(m, grid)), rtol=1e-9, atol=1e-12)
+    extra = [np.array([0.123, 1.777]), np.array([-0.9, 0.05])]
+    more = check_points(m, pairs, extra)
+    assert len(more) == side * side + 2
+    with_extra = np.sort(more.margins(n, r, l, m.theta))
+    want = np.sort(_frozen_margins(m, np.concatenate([grid, np.array(extra)])))
+    np.testing.assert_allclose(with_extra, want, rtol=1e-9, atol=1e-12)
+
+
+def test_check_points_of_one_parameter_with_extra_points():
+    """One parameter: CHECK_POINTS evenly over the range, an extra point added exactly once."""
+    m = _rotating(a=0.8, c=-2.0, w=1.5)
+    n, r, l, _ = m.shape
+    points = check_points(m, [(-1.0, 1.0)], [])
+    assert len(points) == CHECK_POINTS
+    more = check_points(m, [(-1.0, 1.0)], [0.1234, 1.0])  # 1.0 is already a check point
+    assert len(more) == CHECK_POINTS + 1
+    p = np.unique(np.concatenate([np.linspace(-1.0, 1.0, CHECK_POINTS), [0.1234]]))
+    psi = m.basis(p)[:, 0]
+    poles = np.array([np.linalg.eigvals(m.A[0] + s * m.A[1]) for s in psi])
+    want = np.min(-poles.real / np.abs(poles), axis=1)
+    np.testing.assert_allclose(more.margins(n, r, l, m.theta), want, rtol=1e-9)
+
+
+def test_run_stable_gives_up_after_its_rounds_naming_the_last_place():
+    """A fit that keeps leaving the stable set: MAX_ROUNDS runs, the last place named."""
+    m = _rotating(a=0.8, c=-2.0, w=1.5)
+    calls: list[int] = []
+    # Unstable at p = 1, then at p = -1, then at p = 1 again: the message names the last.
+    slopes = iter([1.0, -1.0, 1.0, -1.0])
+
+    def run(points):
+        calls.append(len(points))
+        return {"theta": _rotating(a=next(slopes), c=0.5, w=1.5).theta}
+
+    with pytest.raises(RuntimeError, match=r"after 3 rounds .*\(at p = 1\)"):
+        run_stable(m, None, run)
+    assert len(calls) == MAX_ROUNDS
+
+
+def test_run_stable_refuses_an_unstable_start():
+    """The start is checked over the range asked for, with the place and margin named."""
+    m = _rotating(a=0.8, c=0.2, w=1.5)
+    with pytest.raises(ValueError, match=r"stable=True needs a stable start.* p = 1 is unstable"):
+        run_stable(m, None, lambda points: {})
