@@ -337,7 +337,11 @@ SHAPE = r"\(2, 3, 5\)"
         ({"Ts": np.nan}, r"^x\.mat, sys\.Ts: expected 0 \(continuous\), -1 .*, got nan$"),
         (
             {"Ts": 0.1, "TimeUnit": "fortnights", "FrequencyUnit": "Hz"},
-            r"^x\.mat, sys\.TimeUnit: unknown ",
+            r"^x\.mat, sys\.TimeUnit: unknown TimeUnit 'fortnights' \(known: seconds, ",
+        ),
+        (
+            {"TimeUnit": "fortnights"},  # the frequencies in rad/fortnight
+            r"^x\.mat, sys\.FrequencyUnit: unknown TimeUnit 'fortnights' \(known: seconds, ",
         ),
     ],
 )
