@@ -128,7 +128,7 @@ def test_single_precision_variance_and_coherence_fields_are_read(tmp_path, rng):
 
 @pytest.mark.parametrize("column", [False, True])
 def test_one_pair_saved_by_hand_as_vectors(tmp_path, rng, column):
-    """Rejects: a 1 x F (or F x 1) ResponseData, Variance or Coherence refused or misshaped."""
+    """Rejects: 1 x F (or F x 1) ResponseData, Variance, Coherence misread; empty units refused."""
     n = 7
     g = rng.standard_normal(n) + 1j * rng.standard_normal(n)
     var, coh = rng.uniform(0.1, 1.0, n), rng.uniform(0.1, 0.9, n)
@@ -141,6 +141,8 @@ def test_one_pair_saved_by_hand_as_vectors(tmp_path, rng, column):
         "FrequencyUnit": "Hz",
         "OutputName": "y",  # a char, not a cell, for the one output
         "InputName": "u",
+        "OutputUnit": np.empty((0, 0), dtype=object),  # {}: no units
+        "InputUnit": np.zeros((0, 0)),  # []
     }
     records, Ts = read_mat(save(tmp_path / "h.mat", fields, name=None))
     assert Ts is None  # the file says nothing of the sample time
@@ -151,6 +153,7 @@ def test_one_pair_saved_by_hand_as_vectors(tmp_path, rng, column):
     ]
     for rec, want in zip(records, (g, var, coh), strict=True):
         assert (rec.response.label, rec.reference.label) == ("y", "u")
+        assert rec.units is None
         np.testing.assert_array_equal(rec.values, want)
         np.testing.assert_array_equal(rec.checked().freqs_hz, np.arange(2.0, 2.0 + n))
 
