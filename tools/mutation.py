@@ -64,6 +64,7 @@ PY_TESTS = {
         "tests/test_reader_errors.py",
         "tests/test_mixed_files.py",
         "tests/test_files.py",
+        "tests/test_matlab.py",
     ],
 }
 

@@ -190,8 +190,13 @@ def hz_per_unit(unit: str | None, where: str, time_unit: str | None = None) -> f
     if key in ("rpm", "rev/min"):
         return 1.0 / 60.0
     head, _, tail = key.partition("/")
-    if tail == "timeunit":
+    if tail == "timeunit" and head in ("rad", "cycles"):
         tail = (time_unit or "seconds").strip().lower()
+        if tail not in _TIME_UNITS:
+            raise FileError(
+                f"{where}: unknown TimeUnit {time_unit!r} (known: seconds, milliseconds, "
+                "microseconds, minutes, hours)"
+            )
     if head in ("rad", "cycles") and tail in _TIME_UNITS:
         per_cycle = 2.0 * math.pi if head == "rad" else 1.0
         return 1.0 / (per_cycle * _TIME_UNITS[tail])
