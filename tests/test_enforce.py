@@ -36,7 +36,11 @@ def _rotating(
     C = np.zeros((2, 1, 2))
     C[0] = [[1.0, 0.0]]
     C[1] = [[0.0, 0.3]]
-    return lpvid.LpvModel(A, B, C, basis=basis, p_range=(-1.0, 1.0))
+    D = np.zeros((2, 1, 1))
+    D[0, 0, 0], D[1, 0, 0] = 0.1, -0.05
+    return lpvid.LpvModel(
+        A, B, C, D, basis=basis, p_range=(-1.0, 1.0), info={"made by": "test_enforce"}
+    )
 
 
 def _poles(model: lpvid.LpvModel, p: np.ndarray) -> np.ndarray:
@@ -48,12 +52,12 @@ def _poles(model: lpvid.LpvModel, p: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("margin", [1e-3, 0.3])
 def test_continuous_shift_is_the_promised_one(margin):
     """Only A(0) moves, by -alpha I, alpha = max Re(pole) + margin max |pole| over the range."""
-    m = _rotating(a=0.8, c=0.2, w=1.5, d=0.4)
+    m = _rotating(a=0.8, c=-0.3, w=1.5, d=0.4)
     p = np.linspace(-1.0, 1.0, 401)
     before = _poles(m, p)
     # The poles a p + c +- j (w + d p): extremes at the ends of the range.
-    re_max = 0.8 + 0.2
-    abs_max = abs(complex(1.0, 1.9))
+    re_max = 0.8 - 0.3
+    abs_max = abs(complex(0.5, 1.9))
     assert np.max(before.real) == pytest.approx(re_max, rel=1e-12)
     assert np.max(np.abs(before)) == pytest.approx(abs_max, rel=1e-12)
     alpha = re_max + margin * abs_max
@@ -62,6 +66,7 @@ def test_continuous_shift_is_the_promised_one(margin):
     np.testing.assert_array_equal(s.A[1], m.A[1])
     for name in "BCD":
         np.testing.assert_array_equal(getattr(s, name), getattr(m, name))
+    assert s.p_range == m.p_range and s.info == m.info and s.Ts is None
     after = _poles(s, p)
     # Every pole left of -margin times the largest pole magnitude (before the shift).
     assert np.max(after.real) <= -margin * abs_max * (1 - 1e-9)
