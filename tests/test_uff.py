@@ -359,3 +359,22 @@ def test_marks_helper_counts_what_the_file_holds(tmp_path):
     m = marks(data)
     assert len(m) == 4 and m[0] == 1
     assert re.match(rb"\s+58", data.split(b"\n")[m[2]])  # the line after dataset 2's opening
+
+
+def test_a_file_without_dataset_58(tmp_path):
+    """Rejects a reader whose refusal does not list the datasets the file holds instead."""
+    units = dict(units_code=1, units_description="SI", temp_mode=1, length=1.0, force=1.0)
+    sets = [
+        pyuff.prepare_164(temp=1.0, temp_offset=273.15, **units),
+        pyuff.prepare_151(model_name="tube", description="d", db_app="x", program="pyuff"),
+        pyuff.prepare_164(temp=1.0, temp_offset=273.15, **units),
+    ]
+    refused(
+        write(tmp_path / "a.uff", sets),
+        r"^a.uff: no dataset 58 \(function record\) in the file \(datasets \[151, 164\]\)$",
+    )
+    (tmp_path / "b.uff").write_text("hello\n")
+    refused(
+        tmp_path / "b.uff",
+        r"^b.uff: no dataset 58 \(function record\) in the file \(no UFF datasets\)$",
+    )
