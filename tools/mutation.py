@@ -65,6 +65,7 @@ PY_TESTS = {
         "tests/test_mixed_files.py",
         "tests/test_files.py",
         "tests/test_matlab.py",
+        "tests/test_table.py",
         "tests/test_uff.py",
     ],
 }
