@@ -24,7 +24,12 @@ BASIS = lpvid.Polynomial(1, domain=(-1.0, 1.0))
 
 
 def _rotating(
-    a: float, c: float, w: float, d: float = 0.0, basis: lpvid.Basis = BASIS
+    a: float,
+    c: float,
+    w: float,
+    d: float = 0.0,
+    basis: lpvid.Basis = BASIS,
+    p_range: tuple[float, float] = (-1.0, 1.0),
 ) -> lpvid.LpvModel:
     """Continuous time, poles ``a p + c +- j w`` (``d`` adds a skew part to A(1))."""
     A = np.zeros((2, 2, 2))
@@ -39,7 +44,7 @@ def _rotating(
     D = np.zeros((2, 1, 1))
     D[0, 0, 0], D[1, 0, 0] = 0.1, -0.05
     return lpvid.LpvModel(
-        A, B, C, D, basis=basis, p_range=(-1.0, 1.0), info={"made by": "test_enforce"}
+        A, B, C, D, basis=basis, p_range=p_range, info={"made by": "test_enforce"}
     )
 
 
@@ -52,8 +57,9 @@ def _poles(model: lpvid.LpvModel, p: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("margin", [1e-3, 0.3])
 def test_continuous_shift_is_the_promised_one(margin):
     """Only A(0) moves, by -alpha I, alpha = max Re(pole) + margin max |pole| over the range."""
-    m = _rotating(a=0.8, c=-0.3, w=1.5, d=0.4)
-    p = np.linspace(-1.0, 1.0, 401)
+    # On (-0.5, 1) (not the basis domain): the extremes are at p = 1.
+    m = _rotating(a=0.8, c=-0.3, w=1.5, d=0.4, p_range=(-0.5, 1.0))
+    p = np.linspace(-0.5, 1.0, 401)
     before = _poles(m, p)
     # The poles a p + c +- j (w + d p): extremes at the ends of the range.
     re_max = 0.8 - 0.3
@@ -195,5 +201,9 @@ def test_run_stable_gives_up_after_its_rounds_naming_the_last_place():
 def test_run_stable_refuses_an_unstable_start():
     """The start is checked over the range asked for, with the place and margin named."""
     m = _rotating(a=0.8, c=0.2, w=1.5)
-    with pytest.raises(ValueError, match=r"stable=True needs a stable start.* p = 1 is unstable"):
+    with pytest.raises(
+        ValueError,
+        match=r"stable=True needs a stable start.* p = 1 is unstable .*start from a stable model "
+        r"\(e\.g\. lpvid\.trust\.enforce\.stabilised\(model\)\) or narrow p_range$",
+    ):
         run_stable(m, None, lambda points: {})
