@@ -208,7 +208,7 @@ def test_stable_fits_recheck_the_continuum_between_the_check_points():
     seen = []
 
     def fit(points):
-        seen.append(points.worst(1, 1, 1, bad.theta)[1])
+        seen.append(points.worst(bad.theta)[1])
         theta = bad.theta if seen[-1] >= STABLE_TOL else start.theta
         return {"theta": theta, "interrupted": False}
 

@@ -15,6 +15,7 @@ __all__ = [
     "__version__",
     "__target_features__",
     "SingularModelError",
+    "ModelView",
     "frequency_response",
     "Problem",
     "TimeProblem",
@@ -38,23 +39,21 @@ __target_features__: str
 
 class SingularModelError(ArithmeticError): ...
 
-def frequency_response(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
-    n_points: int,
-    z: NDArray[np.complex128],
-) -> NDArray[np.complex128]: ...
+_Shape = tuple[int, int, int, int]
+
+@final
+class ModelView:
+    def __new__(
+        cls, shape: _Shape, theta: NDArray[np.float64], basis: NDArray[np.float64]
+    ) -> Self: ...
+    @property
+    def shape(self) -> _Shape: ...
+    @property
+    def n_points(self) -> int: ...
+
+def frequency_response(view: ModelView, z: NDArray[np.complex128]) -> NDArray[np.complex128]: ...
 def simulate(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
+    view: ModelView,
     u: NDArray[np.float64],
     x0: NDArray[np.float64],
     dt: float | None = None,
@@ -65,15 +64,10 @@ def simulate(
 class Problem:
     def __new__(
         cls,
-        n: int,
-        r: int,
-        l: int,
-        nb: int,
-        n_points: int,
+        view: ModelView,
         z: NDArray[np.complex128],
         g: NDArray[np.complex128],
         sigma: NDArray[np.float64],
-        basis: NDArray[np.float64],
     ) -> Self: ...
     @property
     def n_residuals(self) -> int: ...
@@ -87,10 +81,7 @@ class Problem:
 class TimeProblem:
     def __new__(
         cls,
-        n: int,
-        r: int,
-        l: int,
-        nb: int,
+        shape: _Shape,
         u: list[NDArray[np.float64]],
         psi: list[NDArray[np.float64]],
         y: list[NDArray[np.float64]],
@@ -123,31 +114,12 @@ _AnyProblem = Problem | TimeProblem | SumProblem
 
 @final
 class FrozenRange:
-    def __new__(
-        cls,
-        nb: int,
-        basis: NDArray[np.float64],
-        n_points: int,
-        stride: int,
-        discrete: bool,
-        tol: float,
-    ) -> Self: ...
+    def __new__(cls, view: ModelView, stride: int, discrete: bool, tol: float) -> Self: ...
     def __len__(self) -> int: ...
-    def margins(
-        self, n: int, r: int, l: int, theta: NDArray[np.float64]
-    ) -> NDArray[np.float64]: ...
-    def worst(self, n: int, r: int, l: int, theta: NDArray[np.float64]) -> tuple[int, float]: ...
+    def margins(self, theta: NDArray[np.float64]) -> NDArray[np.float64]: ...
+    def worst(self, theta: NDArray[np.float64]) -> tuple[int, float]: ...
 
-def lti_jacobian(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
-    n_points: int,
-    z: NDArray[np.complex128],
-) -> NDArray[np.complex128]: ...
+def lti_jacobian(view: ModelView, z: NDArray[np.complex128]) -> NDArray[np.complex128]: ...
 def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ...
 
 _Settings = dict[str, float | int | str]
@@ -191,10 +163,7 @@ def cone_step(
     mu: float,
 ) -> dict[str, Any]: ...
 def fit_memory(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
+    shape: _Shape,
     method: str,
     free: NDArray[np.bool_] | None = None,
     frf: tuple[int, int] | None = None,

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from lpvid import _core
+from lpvid._view import model_view
 from lpvid.frozen import frozen_poles
 from lpvid.model import LpvModel
 from lpvid.trust.ranges import as_convention, box_grid, check_range
@@ -61,10 +62,8 @@ def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[
         pts, stride = box_grid(pairs, BOX_POINTS), 1
         if extra:
             pts = np.concatenate([pts, np.asarray(extra, dtype=float).reshape(-1, len(pairs))])
-    psi = model.basis_values(pts)
-    return _core.FrozenRange(
-        model.n_basis, psi.ravel(), pts.shape[0], stride, model.Ts is not None, STABLE_TOL
-    )
+    view = model_view(model, model.basis_values(pts))
+    return _core.FrozenRange(view, stride, model.Ts is not None, STABLE_TOL)
 
 
 def stabilised(model: LpvModel, p_range: Any = None, margin: float = 1e-3) -> LpvModel:
@@ -132,8 +131,7 @@ def run_stable(
     pairs = check_range(model, p_range)
     start = stability(model, as_convention(pairs), quadratic=False)
     points = check_points(model, pairs, [])
-    n, r, l, _ = model.shape
-    _, at_points = points.worst(n, r, l, model.theta)
+    _, at_points = points.worst(model.theta)
     if not start.stable or not at_points >= STABLE_TOL:
         what = "unstable" if not start.stable else "closer to the stability boundary than allowed"
         raise ValueError(
