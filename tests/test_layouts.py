@@ -153,3 +153,21 @@ def test_simulate_in_other_layouts(rng, layout, Ts):
     assert y2.tobytes() == y.tobytes() and x2.tobytes() == x.tobytes()
     y3 = relaid_model(model, layout).simulate(u, p, x0, dt=dt)
     assert y3.tobytes() == y.tobytes()
+
+
+def test_core_fits_return_typed_read_only_outcomes(case):
+    """fit_nls and l21_path give FitOutcome / PathOutcome objects, not dicts."""
+    start, data = case
+    problem = build_problem(start, data)
+    out = _core.fit_nls(problem, start.theta, None, {"max_iter": 3})
+    assert isinstance(out, _core.FitOutcome)
+    assert out.theta.shape == start.theta.shape and out.vnls <= problem.vnls(start.theta)
+    assert len(out.history) == 3 and set(out.history[0]) >= {"kind", "vnls", "accepted"}
+    with pytest.raises(AttributeError):
+        out.vnls = 0.0
+    gammas = np.array([1e-2, 1e-3])
+    sup = start.basis.sup_norms((0.0, 1.0))
+    path = _core.l21_path(problem, start.theta, sup, gammas, None, {"max_outer": 2})
+    assert isinstance(path, _core.PathOutcome) and len(path) == 2
+    assert path.gammas == gammas.tolist()
+    assert all(isinstance(f, _core.FitOutcome) for f in path.fits)

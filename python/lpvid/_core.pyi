@@ -20,6 +20,9 @@ __all__ = [
     "Problem",
     "TimeProblem",
     "SumProblem",
+    "FitOutcome",
+    "PathOutcome",
+    "ConeStep",
     "cone_step",
     "fit_nls",
     "fit_l21",
@@ -125,6 +128,58 @@ def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ..
 _Settings = dict[str, float | int | str]
 _Callback = Callable[[dict[str, Any]], Any] | None
 
+@final
+class FitOutcome:
+    @property
+    def theta(self) -> NDArray[np.float64]: ...
+    @property
+    def vnls(self) -> float: ...
+    @property
+    def objective(self) -> float: ...
+    @property
+    def stop(self) -> str: ...
+    @property
+    def message(self) -> str: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def interrupted(self) -> bool: ...
+    @property
+    def outer_iterations(self) -> int: ...
+    @property
+    def n_rejected(self) -> int: ...
+    @property
+    def lm_iter_s(self) -> float: ...
+    @property
+    def socp_iter_s(self) -> float: ...
+    @property
+    def total_s(self) -> float: ...
+    @property
+    def history(self) -> list[dict[str, Any]]: ...
+    @property
+    def weights(self) -> NDArray[np.float64]: ...
+
+@final
+class PathOutcome:
+    @property
+    def gammas(self) -> list[float]: ...
+    @property
+    def fits(self) -> list[FitOutcome]: ...
+    def __len__(self) -> int: ...
+
+@final
+class ConeStep:
+    @property
+    def step(self) -> NDArray[np.float64] | None: ...
+    @property
+    def objective(self) -> float: ...
+    @property
+    def status(self) -> str: ...
+    @property
+    def phi(self) -> NDArray[np.float64]: ...
+    @property
+    def varphi(self) -> NDArray[np.float64]: ...
+
 def fit_nls(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
@@ -132,7 +187,7 @@ def fit_nls(
     settings: _Settings,
     callback: _Callback = None,
     stable: FrozenRange | None = None,
-) -> dict[str, Any]: ...
+) -> FitOutcome: ...
 def fit_l21(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
@@ -142,7 +197,7 @@ def fit_l21(
     callback: _Callback = None,
     stable: FrozenRange | None = None,
     pinned: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
-) -> dict[str, Any]: ...
+) -> FitOutcome: ...
 def l21_path(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
@@ -152,7 +207,7 @@ def l21_path(
     settings: _Settings,
     callback: _Callback = None,
     stable: FrozenRange | None = None,
-) -> list[tuple[float, dict[str, Any]]]: ...
+) -> PathOutcome: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
     problem: _AnyProblem,
@@ -161,7 +216,7 @@ def cone_step(
     free: NDArray[np.bool_] | None,
     settings: _Settings,
     mu: float,
-) -> dict[str, Any]: ...
+) -> ConeStep: ...
 def fit_memory(
     shape: _Shape,
     method: str,

@@ -5,6 +5,7 @@ mod convert;
 mod fit_py;
 mod memory_py;
 mod model_py;
+mod outcome_py;
 mod problem_py;
 mod simulate_py;
 mod time_py;

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from lpvid import _core
+from lpvid._core import FitOutcome
 from lpvid._view import model_view
 from lpvid.frozen import frozen_poles
 from lpvid.model import LpvModel
@@ -115,9 +116,9 @@ def _with_A(model: LpvModel, A: Any) -> LpvModel:
 def run_stable(
     model: LpvModel,
     p_range: Any,
-    run: Callable[[Any], dict[str, Any]],
-) -> dict[str, Any]:
-    """Run a fit that keeps stability: ``run(check_points)`` returns the core's result dict.
+    run: Callable[[Any], FitOutcome],
+) -> FitOutcome:
+    """Run a fit that keeps stability: ``run(check_points)`` returns the core's outcome.
 
     Raises
     ------
@@ -141,12 +142,11 @@ def run_stable(
             "lpvid.trust.enforce.stabilised(model)) or narrow p_range"
         )
     extra: list[Any] = []
-    raw: dict[str, Any] = {}
     for _ in range(MAX_ROUNDS):
         raw = run(points if not extra else check_points(model, pairs, extra))
-        if raw.get("interrupted"):
+        if raw.interrupted:
             return raw
-        fitted = model.with_theta(raw["theta"])
+        fitted = model.with_theta(raw.theta)
         rep = stability(fitted, start.p_range, quadratic=False)
         if rep.stable:
             return raw
