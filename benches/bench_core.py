@@ -183,10 +183,10 @@ def iteration_timings(model, data, problem, repeat: int) -> None:
         for _ in range(nb):
             groups.append(slice(start_i, start_i + size))
             start_i += size
-    args = (g, H, diag, mu, theta, groups, out["phi"], out["varphi"], gamma, data.n_residuals)
+    args = (g, H, diag, mu, theta, groups, out.phi, out.varphi, gamma, data.n_residuals)
     t_cvx = median_time(lambda: cvxpy_cone_step(*args), 5)
     d_cvx = cvxpy_cone_step(*args)
-    gap = np.linalg.norm(d_cvx - out["step"]) / np.linalg.norm(d_cvx)
+    gap = np.linalg.norm(d_cvx - out.step) / np.linalg.norm(d_cvx)
     print(f"  cone program, build + solve (Rust Clarabel)  : {t_cone * 1e3:8.3f} ms median")
     print(f"  same program in cvxpy + Clarabel (Python)    : {t_cvx * 1e3:8.3f} ms median")
     print(f"  ratio cvxpy / core                          : {t_cvx / t_cone:8.1f} x")

@@ -65,20 +65,17 @@ def main() -> None:
     n, r, l, nb = model.shape
     psi = model.basis(p)
     theta = model.theta
-    flat_psi, flat_u, x0 = psi.ravel(), u.copy(), np.zeros(n)
+    view, flat_u, x0 = _core.ModelView(model.shape, theta, psi), u.copy(), np.zeros(n)
     y = model.simulate(u, p)
     assert y.shape == (T, l) and np.all(np.isfinite(y))
     t_all = median_time(lambda: model.simulate(u, p), args.repeat)
-    t_core = median_time(
-        lambda: _core.simulate(n, r, l, nb, theta, flat_psi, flat_u, x0), args.repeat
-    )
+    t_core = median_time(lambda: _core.simulate(view, flat_u, x0), args.repeat)
     t_basis = median_time(lambda: model.basis(p), args.repeat)
     ct_theta = continuous_twin(model).theta
     t_ct = min(T, 100_000)
-    ct_psi, ct_u = flat_psi[: t_ct * nb].copy(), flat_u[:t_ct].copy()
-    t_zoh = median_time(
-        lambda: _core.simulate(n, r, l, nb, ct_theta, ct_psi, ct_u, x0, 1e-3), args.repeat
-    )
+    ct_view = _core.ModelView(model.shape, ct_theta, psi[:t_ct].copy())
+    ct_u = flat_u[:t_ct].copy()
+    t_zoh = median_time(lambda: _core.simulate(ct_view, ct_u, x0, 1e-3), args.repeat)
     print(f"simulate {T} samples: n={n}, r={r}, l={l}, Nb={nb}, discrete time")
     print(f"  model.simulate(u, p) (whole call)  : {t_all * 1e3:8.2f} ms median")
     print(f"  Rust core (basis values given)     : {t_core * 1e3:8.2f} ms median")

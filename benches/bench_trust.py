@@ -55,11 +55,10 @@ def main() -> None:
         )
     )
     points = check_points(model, check_range(model, None), [])
-    n, r, l, _ = model.shape
     rows.append(
         (
             "stable=True check of one trial step (2049 points)",
-            median_time(lambda: points.worst(n, r, l, model.theta), 10 * args.repeat),
+            median_time(lambda: points.worst(model.theta), 10 * args.repeat),
         )
     )
     problem = build_problem(model, data)

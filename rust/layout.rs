@@ -147,8 +147,17 @@ impl Shape {
             .collect()
     }
 
-    /// Check that a parameter vector has the right length.
+    /// Check that a parameter vector has the right length and is finite.
     pub fn check_theta(&self, theta: &[f64]) -> Result<()> {
+        self.check_theta_len(theta)?;
+        if theta.iter().any(|v| !v.is_finite()) {
+            return Err(invalid("theta", "contains NaN or Inf"));
+        }
+        Ok(())
+    }
+
+    /// Check that a parameter vector has the right length.
+    pub fn check_theta_len(&self, theta: &[f64]) -> Result<()> {
         if theta.len() != self.len() {
             return Err(invalid(
                 "theta",
@@ -162,9 +171,6 @@ impl Shape {
                     theta.len()
                 ),
             ));
-        }
-        if theta.iter().any(|v| !v.is_finite()) {
-            return Err(invalid("theta", "contains NaN or Inf"));
         }
         Ok(())
     }

@@ -62,7 +62,7 @@ def test_lti_jacobian_matches_finite_differences(rng):
     p = np.array([0.15, 0.6])
     n, r, l, nb = model.shape
     psi = model.basis_values(p)
-    jac = _core.lti_jacobian(n, r, l, nb, model.theta, psi.ravel(), 2, z_points(f, 0.01))
+    jac = _core.lti_jacobian(_core.ModelView(model.shape, model.theta, psi), z_points(f, 0.01))
     jac = jac.reshape(2, 3, l, r, -1)
     # The LTI parameter u of the frozen model moves with theta_X(0) entry u (weight 1).
     h = 1e-6

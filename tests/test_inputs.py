@@ -164,26 +164,49 @@ def test_no_panic_reaches_python_from_the_core():
     from lpvid import _core
 
     with pytest.raises(ValueError, match=r"^theta: expected 9 parameters"):
-        _core.frequency_response(2, 1, 1, 0, np.zeros(3), np.zeros(0), 1, np.ones(2, complex))
+        _core.frequency_response(
+            _core.ModelView((2, 1, 1, 0), np.zeros(3), np.zeros((1, 0))), np.ones(2, complex)
+        )
     with pytest.raises(ValueError, match=r"^psi: expected 1 basis values"):
-        _core.frequency_response(1, 1, 1, 1, np.zeros(8), np.zeros(3), 1, np.ones(2, complex))
+        _core.frequency_response(
+            _core.ModelView((1, 1, 1, 1), np.zeros(8), np.zeros((1, 3))), np.ones(2, complex)
+        )
     with pytest.raises(ValueError, match=r"^n: the model needs at least one state"):
-        _core.frequency_response(0, 1, 1, 0, np.zeros(0), np.zeros(0), 1, np.ones(2, complex))
+        _core.frequency_response(
+            _core.ModelView((0, 1, 1, 0), np.zeros(0), np.zeros((1, 0))), np.ones(2, complex)
+        )
+    view = _core.ModelView((1, 1, 1, 0), np.zeros(4), np.zeros((1, 0)))
     with pytest.raises(ValueError, match=r"^sigma: must be finite and > 0"):
-        _core.Problem(
-            1, 1, 1, 0, 1, np.ones(2, complex), np.ones(2, complex), np.zeros(2), np.zeros(0)
-        )
+        _core.Problem(view, np.ones(2, complex), np.ones(2, complex), np.zeros(2))
     with pytest.raises(ValueError, match=r"^G: expected 2 values"):
-        _core.Problem(
-            1, 1, 1, 0, 1, np.ones(2, complex), np.ones(3, complex), np.ones(2), np.zeros(0)
-        )
-    prob = _core.Problem(
-        1, 1, 1, 0, 1, np.ones(2, complex), np.ones(2, complex), np.ones(2), np.zeros(0)
-    )
+        _core.Problem(view, np.ones(2, complex), np.ones(3, complex), np.ones(2))
+    prob = _core.Problem(view, np.ones(2, complex), np.ones(2, complex), np.ones(2))
     with pytest.raises(ValueError, match=r"^free: mask has 3 entries, theta has 4"):
         prob.gauss_newton(np.zeros(4), np.ones(3, bool))
     with pytest.raises(ValueError, match=r"^theta: contains NaN or Inf"):
         prob.vnls(np.full(4, np.nan))
+
+
+def test_model_view_checks_its_parts_once():
+    from lpvid import _core
+
+    with pytest.raises(TypeError, match=r"^argument 'shape': expected a tuple \(n, r, l, nb\)"):
+        _core.ModelView((1, 1, 1), np.zeros(4), np.zeros((1, 0)))
+    with pytest.raises(TypeError, match=r"^argument 'shape': expected a tuple"):
+        _core.ModelView((1, 1, -1, 0), np.zeros(4), np.zeros((1, 0)))
+    with pytest.raises(ValueError, match=r"^theta: expected 8 parameters"):
+        _core.ModelView((1, 1, 1, 1), np.zeros(4), np.zeros((2, 1)))
+    with pytest.raises(
+        ValueError, match=r"^psi: expected 4 basis values \(2 points x 2 functions\)"
+    ):
+        _core.ModelView((1, 1, 1, 2), np.zeros(12), np.zeros((2, 1)))
+    with pytest.raises(TypeError):
+        _core.ModelView((1, 1, 1, 1), np.zeros(8), np.zeros(2))  # basis values are (N, Nb)
+    with pytest.raises(TypeError, match=r"^argument 'shape': expected a tuple"):
+        _core.fit_memory((1, 1, 1), "lm")
+    view = _core.ModelView((1, 1, 1, 1), np.full(8, np.nan), np.zeros((2, 1)))
+    with pytest.raises(ValueError, match=r"^theta: contains NaN or Inf"):
+        _core.frequency_response(view, np.ones(2, complex))
 
 
 def test_errors_beyond_float64_come_back_as_inf_with_a_warning(rng):

@@ -85,16 +85,27 @@ def test_frf_data_and_model_in_other_layouts_give_the_same_fit_quantities(case, 
     assert fit1.model.theta.tobytes() == fit2.model.theta.tobytes()
 
 
+def test_model_view_reads_basis_values_in_any_layout_by_value(case):
+    """A view holds the basis array it is given: Fortran order and gaps read as row-major."""
+    start, data = case
+    psi = np.ascontiguousarray(start.basis_values(data.p))
+    ref = _core.frequency_response(_core.ModelView(start.shape, start.theta, psi), data.z)
+    for other in (fortran(psi), strided(psi)):
+        assert not other.flags.c_contiguous
+        view = _core.ModelView(start.shape, strided(start.theta), other)
+        assert view.shape == start.shape and view.n_points == psi.shape[0]
+        assert _core.frequency_response(view, data.z).tobytes() == ref.tobytes()
+
+
 def test_core_problem_reads_strided_arrays_by_value(case):
     """The binding itself, fed strided 1-D views of what build_problem passes."""
     start, data = case
     problem = build_problem(start, data)
-    psi = start.basis_values(data.p).ravel()
-    n, r, l, nb = start.shape
+    psi = start.basis_values(data.p)
     args = (data.z, data.G.ravel(), data.sigma.ravel(), psi)
     views = [strided(np.ascontiguousarray(a)) for a in args]
     assert not any(v.flags.c_contiguous for v in views if v.size > 1)
-    other = _core.Problem(n, r, l, nb, data.n_points, *views)
+    other = _core.Problem(_core.ModelView(start.shape, start.theta, views[3]), *views[:3])
     theta = strided(start.theta)
     assert other.vnls(theta) == problem.vnls(start.theta)
     assert other.residual(theta).tobytes() == problem.residual(start.theta).tobytes()
@@ -142,3 +153,21 @@ def test_simulate_in_other_layouts(rng, layout, Ts):
     assert y2.tobytes() == y.tobytes() and x2.tobytes() == x.tobytes()
     y3 = relaid_model(model, layout).simulate(u, p, x0, dt=dt)
     assert y3.tobytes() == y.tobytes()
+
+
+def test_core_fits_return_typed_read_only_outcomes(case):
+    """fit_nls and l21_path give FitOutcome / PathOutcome objects, not dicts."""
+    start, data = case
+    problem = build_problem(start, data)
+    out = _core.fit_nls(problem, start.theta, None, {"max_iter": 3})
+    assert isinstance(out, _core.FitOutcome)
+    assert out.theta.shape == start.theta.shape and out.vnls <= problem.vnls(start.theta)
+    assert len(out.history) == 3 and set(out.history[0]) >= {"kind", "vnls", "accepted"}
+    with pytest.raises(AttributeError):
+        out.vnls = 0.0
+    gammas = np.array([1e-2, 1e-3])
+    sup = start.basis.sup_norms((0.0, 1.0))
+    path = _core.l21_path(problem, start.theta, sup, gammas, None, {"max_outer": 2})
+    assert isinstance(path, _core.PathOutcome) and len(path) == 2
+    assert path.gammas == gammas.tolist()
+    assert all(isinstance(f, _core.FitOutcome) for f in path.fits)

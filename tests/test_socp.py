@@ -73,7 +73,7 @@ def test_cone_step_matches_cvxpy(rng, gamma, fixed, resting):
     # the formulation, not the two solvers' stopping points.
     settings = {"gamma": gamma, "eps": eps, "cone_tol": 1e-10}
     out = _core.cone_step(build_problem(start, data), theta, sup, free, settings, mu)
-    assert out["status"] in ("Solved", "AlmostSolved")
+    assert out.status in ("Solved", "AlmostSolved")
     phi, varphi = weights_23(start, sup, eps)
     if fixed:
         # A(0) and D(0) are fixed: (22) for their groups, whatever their value
@@ -83,8 +83,8 @@ def test_cone_step_matches_cvxpy(rng, gamma, fixed, resting):
             norms = np.array([np.linalg.norm(coef[i]) for i in range(1, nb + 1)])
             phi[groups] = 1.0 / (norms * sup + eps)
             varphi[groups] = sup
-    np.testing.assert_allclose(out["phi"], phi, rtol=1e-12)
-    np.testing.assert_allclose(out["varphi"], varphi, rtol=1e-12)
+    np.testing.assert_allclose(out.phi, phi, rtol=1e-12)
+    np.testing.assert_allclose(out.varphi, varphi, rtol=1e-12)
 
     # The same subproblem in cvxpy.
     _, g, H = gauss_newton(start, data, fixed)
@@ -121,8 +121,8 @@ def test_cone_step_matches_cvxpy(rng, gamma, fixed, resting):
         solver=cp.CLARABEL, tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, max_iter=400
     )
     assert prob.status == "optimal"
-    assert out["objective"] == pytest.approx(prob.value, rel=1e-6, abs=1e-9)
-    step, reference = out["step"], e.value / scale
+    assert out.objective == pytest.approx(prob.value, rel=1e-6, abs=1e-9)
+    step, reference = out.step, e.value / scale
 
     def objective_terms(d_free):  # the three terms of (27) at a step, written out in numpy
         full = theta.copy()
@@ -164,4 +164,4 @@ def test_zero_gamma_step_is_the_levenberg_marquardt_step(rng):
     _, g, H = gauss_newton(start, data)
     D = np.maximum(np.diag(H), 1e-12 * np.diag(H).max())
     lm = np.linalg.solve(H + mu * np.diag(D), -0.5 * g)
-    np.testing.assert_allclose(out["step"], lm, rtol=1e-6, atol=1e-7 * np.linalg.norm(lm))
+    np.testing.assert_allclose(out.step, lm, rtol=1e-6, atol=1e-7 * np.linalg.norm(lm))

@@ -56,10 +56,11 @@ def test_core_check_points_agree_with_numpy(rng, Ts):
     # The core's eigenvalues (nalgebra's Schur form) against LAPACK's through numpy.
     model = random_lpv(rng, n=6, r=1, l=2, nb=3, Ts=Ts)
     p = np.linspace(0, 1, 101)
-    pts = _core.FrozenRange(3, model.basis_values(p).ravel(), 101, 10, Ts is not None, 0.0)
-    core = pts.margins(6, 1, 2, model.theta)
+    view = _core.ModelView((6, 1, 2, 3), model.theta, model.basis_values(p))
+    pts = _core.FrozenRange(view, 10, Ts is not None, 0.0)
+    core = pts.margins(model.theta)
     np.testing.assert_allclose(core, margins(model, p), rtol=1e-9, atol=1e-12)
-    k, worst = pts.worst(6, 1, 2, model.theta)
+    k, worst = pts.worst(model.theta)
     assert worst == pytest.approx(core.min()) and k == int(np.argmin(core))
     assert len(pts) == 101
 

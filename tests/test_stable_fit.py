@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -208,22 +209,22 @@ def test_stable_fits_recheck_the_continuum_between_the_check_points():
     seen = []
 
     def fit(points):
-        seen.append(points.worst(1, 1, 1, bad.theta)[1])
+        seen.append(points.worst(bad.theta)[1])
         theta = bad.theta if seen[-1] >= STABLE_TOL else start.theta
-        return {"theta": theta, "interrupted": False}
+        return SimpleNamespace(theta=theta, interrupted=False)
 
     raw = run_stable(start, None, fit)
     # The first fit passed its check points; the check of the continuum found the window
     # and the second fit, with its place among the check points, refused the model.
     assert seen[0] == 1.0 and seen[1] < 0 and len(seen) == 2
-    np.testing.assert_array_equal(raw["theta"], start.theta)
+    np.testing.assert_array_equal(raw.theta, start.theta)
     # A fit that keeps returning an unstable model is an error after MAX_ROUNDS, never a result.
     seen.clear()
     with pytest.raises(RuntimeError, match=r"^stable=True: after 3 rounds .*\(at p = 0\.4885"):
-        run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": False})
+        run_stable(start, None, lambda points: SimpleNamespace(theta=bad.theta, interrupted=False))
     # An interrupted fit is returned as it is (the caller reports it).
-    out = run_stable(start, None, lambda points: {"theta": bad.theta, "interrupted": True})
-    assert out["interrupted"]
+    out = run_stable(start, None, lambda points: SimpleNamespace(theta=bad.theta, interrupted=True))
+    assert out.interrupted
 
 
 @pytest.mark.parametrize("how", ["stable", "pinned"])

@@ -15,10 +15,14 @@ __all__ = [
     "__version__",
     "__target_features__",
     "SingularModelError",
+    "ModelView",
     "frequency_response",
     "Problem",
     "TimeProblem",
     "SumProblem",
+    "FitOutcome",
+    "PathOutcome",
+    "ConeStep",
     "cone_step",
     "fit_nls",
     "fit_l21",
@@ -38,23 +42,21 @@ __target_features__: str
 
 class SingularModelError(ArithmeticError): ...
 
-def frequency_response(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
-    n_points: int,
-    z: NDArray[np.complex128],
-) -> NDArray[np.complex128]: ...
+_Shape = tuple[int, int, int, int]
+
+@final
+class ModelView:
+    def __new__(
+        cls, shape: _Shape, theta: NDArray[np.float64], basis: NDArray[np.float64]
+    ) -> Self: ...
+    @property
+    def shape(self) -> _Shape: ...
+    @property
+    def n_points(self) -> int: ...
+
+def frequency_response(view: ModelView, z: NDArray[np.complex128]) -> NDArray[np.complex128]: ...
 def simulate(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
+    view: ModelView,
     u: NDArray[np.float64],
     x0: NDArray[np.float64],
     dt: float | None = None,
@@ -65,15 +67,10 @@ def simulate(
 class Problem:
     def __new__(
         cls,
-        n: int,
-        r: int,
-        l: int,
-        nb: int,
-        n_points: int,
+        view: ModelView,
         z: NDArray[np.complex128],
         g: NDArray[np.complex128],
         sigma: NDArray[np.float64],
-        basis: NDArray[np.float64],
     ) -> Self: ...
     @property
     def n_residuals(self) -> int: ...
@@ -87,10 +84,7 @@ class Problem:
 class TimeProblem:
     def __new__(
         cls,
-        n: int,
-        r: int,
-        l: int,
-        nb: int,
+        shape: _Shape,
         u: list[NDArray[np.float64]],
         psi: list[NDArray[np.float64]],
         y: list[NDArray[np.float64]],
@@ -123,35 +117,68 @@ _AnyProblem = Problem | TimeProblem | SumProblem
 
 @final
 class FrozenRange:
-    def __new__(
-        cls,
-        nb: int,
-        basis: NDArray[np.float64],
-        n_points: int,
-        stride: int,
-        discrete: bool,
-        tol: float,
-    ) -> Self: ...
+    def __new__(cls, view: ModelView, stride: int, discrete: bool, tol: float) -> Self: ...
     def __len__(self) -> int: ...
-    def margins(
-        self, n: int, r: int, l: int, theta: NDArray[np.float64]
-    ) -> NDArray[np.float64]: ...
-    def worst(self, n: int, r: int, l: int, theta: NDArray[np.float64]) -> tuple[int, float]: ...
+    def margins(self, theta: NDArray[np.float64]) -> NDArray[np.float64]: ...
+    def worst(self, theta: NDArray[np.float64]) -> tuple[int, float]: ...
 
-def lti_jacobian(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
-    theta: NDArray[np.float64],
-    basis: NDArray[np.float64],
-    n_points: int,
-    z: NDArray[np.complex128],
-) -> NDArray[np.complex128]: ...
+def lti_jacobian(view: ModelView, z: NDArray[np.complex128]) -> NDArray[np.complex128]: ...
 def stability_margin(poles: NDArray[np.complex128], discrete: bool) -> float: ...
 
 _Settings = dict[str, float | int | str]
 _Callback = Callable[[dict[str, Any]], Any] | None
+
+@final
+class FitOutcome:
+    @property
+    def theta(self) -> NDArray[np.float64]: ...
+    @property
+    def vnls(self) -> float: ...
+    @property
+    def objective(self) -> float: ...
+    @property
+    def stop(self) -> str: ...
+    @property
+    def message(self) -> str: ...
+    @property
+    def converged(self) -> bool: ...
+    @property
+    def interrupted(self) -> bool: ...
+    @property
+    def outer_iterations(self) -> int: ...
+    @property
+    def n_rejected(self) -> int: ...
+    @property
+    def lm_iter_s(self) -> float: ...
+    @property
+    def socp_iter_s(self) -> float: ...
+    @property
+    def total_s(self) -> float: ...
+    @property
+    def history(self) -> list[dict[str, Any]]: ...
+    @property
+    def weights(self) -> NDArray[np.float64]: ...
+
+@final
+class PathOutcome:
+    @property
+    def gammas(self) -> list[float]: ...
+    @property
+    def fits(self) -> list[FitOutcome]: ...
+    def __len__(self) -> int: ...
+
+@final
+class ConeStep:
+    @property
+    def step(self) -> NDArray[np.float64] | None: ...
+    @property
+    def objective(self) -> float: ...
+    @property
+    def status(self) -> str: ...
+    @property
+    def phi(self) -> NDArray[np.float64]: ...
+    @property
+    def varphi(self) -> NDArray[np.float64]: ...
 
 def fit_nls(
     problem: _AnyProblem,
@@ -160,7 +187,7 @@ def fit_nls(
     settings: _Settings,
     callback: _Callback = None,
     stable: FrozenRange | None = None,
-) -> dict[str, Any]: ...
+) -> FitOutcome: ...
 def fit_l21(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
@@ -170,7 +197,7 @@ def fit_l21(
     callback: _Callback = None,
     stable: FrozenRange | None = None,
     pinned: tuple[NDArray[np.float64], NDArray[np.float64], float] | None = None,
-) -> dict[str, Any]: ...
+) -> FitOutcome: ...
 def l21_path(
     problem: _AnyProblem,
     theta: NDArray[np.float64],
@@ -180,7 +207,7 @@ def l21_path(
     settings: _Settings,
     callback: _Callback = None,
     stable: FrozenRange | None = None,
-) -> list[tuple[float, dict[str, Any]]]: ...
+) -> PathOutcome: ...
 def l21_defaults() -> dict[str, float | int | str]: ...
 def cone_step(
     problem: _AnyProblem,
@@ -189,12 +216,9 @@ def cone_step(
     free: NDArray[np.bool_] | None,
     settings: _Settings,
     mu: float,
-) -> dict[str, Any]: ...
+) -> ConeStep: ...
 def fit_memory(
-    n: int,
-    r: int,
-    l: int,
-    nb: int,
+    shape: _Shape,
     method: str,
     free: NDArray[np.bool_] | None = None,
     frf: tuple[int, int] | None = None,

@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike
 from lpvid import _core
 from lpvid._checks import positive_float, real_array
 from lpvid._modeltype import ModelLike
+from lpvid._view import model_view
 
 # What `LpvModel.simulate` does when the simulation diverges.
 _ON_DIVERGENCE = ("warn", "raise")
@@ -92,12 +93,7 @@ def simulate(
     # u_arr and psi are this call's own arrays: the core may read them
     # without the GIL.
     y, x, diverged = _core.simulate(
-        n,
-        r,
-        l,
-        nb,
-        model.theta,
-        psi.ravel(),
+        model_view(model, psi),
         np.ascontiguousarray(u_arr).ravel(),
         x_init,
         hold,

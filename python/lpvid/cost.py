@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from lpvid import _core
 from lpvid._checks import same_sample_time
+from lpvid._view import model_view
 from lpvid.data import FrfData
 from lpvid.layout import free_mask
 from lpvid.model import LpvModel
@@ -40,11 +41,8 @@ def check_compatible(model: LpvModel, data: FrfData) -> None:
 def build_problem(model: LpvModel, data: FrfData) -> Any:
     """The compiled problem (data and basis values) for the core's evaluations."""
     check_compatible(model, data)
-    psi = model.basis_values(data.p)
-    n, r, l, nb = model.shape
-    return _core.Problem(
-        n, r, l, nb, data.n_points, data.z, data.G.ravel(), data.sigma.ravel(), psi.ravel()
-    )
+    view = model_view(model, model.basis_values(data.p))
+    return _core.Problem(view, data.z, data.G.ravel(), data.sigma.ravel())
 
 
 def vnls(model: LpvModel, data: FrfData) -> float:

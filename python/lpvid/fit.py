@@ -15,6 +15,7 @@ import numpy as np
 
 from lpvid import _core
 from lpvid._checks import flag, positive_float, real_array
+from lpvid._core import FitOutcome
 from lpvid._spread import stop_flag
 from lpvid.data import FrfData
 from lpvid.errors import ConvergenceWarning, logger
@@ -243,8 +244,8 @@ def _pinned(
 
 
 def _stable_run(
-    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], dict[str, Any]]
-) -> dict[str, Any]:
+    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], FitOutcome]
+) -> FitOutcome:
     """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
     if not flag(stable, "stable"):
         return run(None)
@@ -260,23 +261,23 @@ def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any,
 
 
 def _l21_result(
-    raw: dict[str, Any],
+    raw: FitOutcome,
     model: LpvModel,
     noise_floor: int,
     gamma: float,
     p_range: Any,
     threshold: float,
 ) -> L21Result:
-    fitted = model.with_theta(raw["theta"])
+    fitted = model.with_theta(raw.theta)
     return L21Result._from_core(
         raw,
         model,
         noise_floor,
         gamma=float(gamma),
-        weights=np.asarray(raw["weights"]),
+        weights=np.asarray(raw.weights),
         group_norms=fitted.group_norms(p_range),
         threshold=threshold,
-        outer_iterations=int(raw["outer_iterations"]),
+        outer_iterations=int(raw.outer_iterations),
     )
 
 
@@ -400,11 +401,11 @@ def fit_l21(
 
 
 def _sweep(
-    model: LpvModel, gammas: Any, fit_one: Callable[[LpvModel, float], dict[str, Any]]
-) -> list[tuple[float, dict[str, Any]]]:
+    model: LpvModel, gammas: Any, fit_one: Callable[[LpvModel, float], FitOutcome]
+) -> list[tuple[float, FitOutcome]]:
     """A warm-started gamma path, largest gamma first, one ``fit_one(start, gamma)`` each.
 
-    ``fit_one`` returns the core's result dict; the sweep stops after a fit
+    ``fit_one`` returns the core's outcome; the sweep stops after a fit
     that Ctrl-C interrupted (as the core's ``l21_path`` does).
     """
     out = []
@@ -412,8 +413,8 @@ def _sweep(
     for g in sorted((float(x) for x in gammas), reverse=True):
         raw = fit_one(current, g)
         out.append((g, raw))
-        current = current.with_theta(raw["theta"])
-        if raw["interrupted"]:
+        current = current.with_theta(raw.theta)
+        if raw.interrupted:
             break
     return out
 
@@ -463,7 +464,7 @@ def l21_path(
     pin = flag(pinned, "pinned")
     check_fit("l21_path", model, data, free, "l21", time_data, pin)
 
-    def one(m: LpvModel, g: float, check: Any = None) -> dict[str, Any]:
+    def one(m: LpvModel, g: float, check: Any = None) -> FitOutcome:
         flat = _pinned(m, data, free, pin)
         return _core.fit_l21(problem, m.theta, sup, free, s.to_core(g), monitor, check, flat)
 
@@ -472,7 +473,8 @@ def l21_path(
     elif pin:
         raws = _sweep(model, gs, one)
     else:
-        raws = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
+        path = _core.l21_path(problem, model.theta, sup, gs, free, s.to_core(), monitor)
+        raws = list(zip(path.gammas, path.fits, strict=True))
     results = [_l21_result(raw, model, floor, g, rng, s.threshold) for g, raw in raws]
     if warn:
         for r in results:

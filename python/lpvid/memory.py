@@ -128,10 +128,7 @@ def sizes_memory(
     """
     return dict(
         _core.fit_memory(
-            n,
-            r,
-            l,
-            nb,
+            (n, r, l, nb),
             method,
             None if free is None else np.ascontiguousarray(free, dtype=bool),
             frf,

@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid import _core, _simulate, handoff, modelfile
 from lpvid._checks import real_array, sample_time
+from lpvid._view import model_view
 from lpvid.basis import Basis, Polynomial
 from lpvid.data import z_points
 from lpvid.groups import GroupNorms, group_norms
@@ -237,10 +238,8 @@ class LpvModel:
         """
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         psi = self.basis_values(p)
-        n, r, l, nb = self.shape
-        out = _core.frequency_response(
-            n, r, l, nb, self.theta, psi.ravel(), psi.shape[0], z_points(f, self.Ts)
-        )
+        _, r, l, _ = self.shape
+        out = _core.frequency_response(model_view(self, psi), z_points(f, self.Ts))
         return out.reshape(psi.shape[0], f.size, l, r)
 
     def simulate(

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._core import FitOutcome
 from lpvid.groups import GroupNorms
 from lpvid.model import LpvModel
 
@@ -70,19 +71,23 @@ class FitResult:
         return len(self.history)
 
     @classmethod
-    def _from_core(cls, raw: dict[str, Any], model: LpvModel, noise_floor: int, **extra: Any):
+    def _from_core(cls, raw: FitOutcome, model: LpvModel, noise_floor: int, **extra: Any):
         return cls(
-            model=model.with_theta(raw["theta"]),
-            vnls=float(raw["vnls"]),
+            model=model.with_theta(raw.theta),
+            vnls=float(raw.vnls),
             noise_floor=int(noise_floor),
-            objective=float(raw["objective"]),
-            history=list(raw["history"]),
-            timings={k: float(raw[k]) for k in ("lm_iter_s", "socp_iter_s", "total_s")},
-            converged=bool(raw["converged"]),
-            stop=str(raw["stop"]),
-            message=str(raw["message"]),
-            interrupted=bool(raw["interrupted"]),
-            n_rejected=int(raw["n_rejected"]),
+            objective=float(raw.objective),
+            history=list(raw.history),
+            timings={
+                "lm_iter_s": float(raw.lm_iter_s),
+                "socp_iter_s": float(raw.socp_iter_s),
+                "total_s": float(raw.total_s),
+            },
+            converged=bool(raw.converged),
+            stop=str(raw.stop),
+            message=str(raw.message),
+            interrupted=bool(raw.interrupted),
+            n_rejected=int(raw.n_rejected),
             **extra,
         )
 

@@ -183,14 +183,10 @@ def build_time_problem(model: LpvModel, time_data: Any) -> Any:
     cost = as_time_cost(time_data)
     data = cost.data
     check_time_compatible(model, data)
-    n, r, l, nb = model.shape
-    values = cost.x0_values(n)
+    values = cost.x0_values(model.n_states)
     mode = "given" if values is not None else str(cost.x0)
     return _core.TimeProblem(
-        n,
-        r,
-        l,
-        nb,
+        model.shape,
         [np.ascontiguousarray(u).ravel() for u in data.u],
         [np.ascontiguousarray(model.basis_values(p)).ravel() for p in data.p],
         [np.ascontiguousarray(y).ravel() for y in data.y],

@@ -2,11 +2,13 @@
 //! exceptions.
 
 use crate::error::{catch_panic, Error};
-use numpy::{Complex64, PyArray1, PyReadonlyArray1};
+use numpy::ndarray::Dimension;
+use numpy::{Complex64, PyArray1, PyReadonlyArray, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{
     PyArithmeticError, PyKeyboardInterrupt, PyMemoryError, PyRuntimeError, PyValueError,
 };
 use pyo3::prelude::*;
+use std::borrow::Cow;
 
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
@@ -45,6 +47,19 @@ pub fn guarded<T>(work: impl FnOnce() -> crate::Result<T>) -> PyResult<T> {
 /// Copy a 1-D float64 array (any strides).
 pub fn real_vec(a: &PyReadonlyArray1<'_, f64>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
+}
+
+/// A float64 array's data, flat in row-major order: borrowed when it is
+/// C-contiguous (long arrays are not copied: a fresh copy of tens of
+/// megabytes costs more than a whole simulation), copied otherwise
+/// (`as_slice` alone would also take a Fortran-ordered array as it lies).
+pub fn flat<'a, D: Dimension>(a: &'a PyReadonlyArray<'_, f64, D>) -> Cow<'a, [f64]> {
+    if a.is_c_contiguous() {
+        if let Ok(s) = a.as_slice() {
+            return Cow::Borrowed(s);
+        }
+    }
+    Cow::Owned(a.as_array().iter().copied().collect())
 }
 
 /// Copy a 1-D complex128 array (any strides).

@@ -3,10 +3,11 @@
 //! back once per iteration to call the progress callback and to notice
 //! Ctrl-C.
 
-use super::convert::{bool_vec, detached, real_vec, to_py};
+use super::convert::{bool_vec, detached, real_vec};
+use super::outcome_py::{iteration_dict, PyConeStep, PyFitOutcome, PyPathOutcome};
 use super::time_py::target;
 use super::trust_py::PyFrozenRange;
-use crate::fit::{Fit, Iteration, Monitor, StepKind, Stop};
+use crate::fit::{Iteration, Monitor};
 use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{levenberg_marquardt, LmSettings};
@@ -18,7 +19,7 @@ use numpy::{PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyList};
+use pyo3::types::{PyBool, PyDict};
 
 /// Calls the Python callback with one dict per iteration; stops the fit when
 /// the callback returns `False`, raises, or Ctrl-C arrives. Ctrl-C is
@@ -82,76 +83,6 @@ fn with_monitor<T: Send>(
         Some(e) => Err(e),
         None => Ok((out, monitor.signalled)),
     }
-}
-
-fn iteration_dict<'py>(py: Python<'py>, it: &Iteration) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    let kind = match it.kind {
-        StepKind::Lm => "lm",
-        StepKind::Socp => "socp",
-    };
-    d.set_item("kind", kind)?;
-    d.set_item("outer", it.outer)?;
-    d.set_item("vnls", it.vnls)?;
-    d.set_item("objective", it.objective)?;
-    d.set_item("step_norm", it.step_norm)?;
-    d.set_item("lambda", it.lambda)?;
-    d.set_item("accepted", it.accepted)?;
-    d.set_item("gain_ratio", it.gain_ratio)?;
-    d.set_item("status", &it.status)?;
-    d.set_item("solver_iterations", it.solver_iterations)?;
-    d.set_item("seconds", it.seconds)?;
-    Ok(d)
-}
-
-fn stop_code(stop: Stop) -> &'static str {
-    match stop {
-        Stop::StepSize => "step_size",
-        Stop::CostChange => "cost_change",
-        Stop::Gradient => "gradient",
-        Stop::Weights => "weights",
-        Stop::Settled => "settled",
-        Stop::MaxIterations => "max_iterations",
-        Stop::Damping => "damping",
-        Stop::Interrupted => "interrupted",
-        Stop::NothingFree => "nothing_free",
-    }
-}
-
-/// Stop code and message of the fit for Python; `signalled`: Ctrl-C stopped it.
-fn stop_of(fit: &Fit, signalled: bool) -> (&'static str, &'static str) {
-    if signalled && fit.stop == Stop::Interrupted {
-        (
-            "keyboard_interrupt",
-            "interrupted by Ctrl-C (SIGINT); the best model so far is returned",
-        )
-    } else {
-        (stop_code(fit.stop), fit.stop.message())
-    }
-}
-
-fn fit_dict<'py>(py: Python<'py>, fit: Fit, signalled: bool) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    let (code, message) = stop_of(&fit, signalled);
-    let rows = PyList::empty(py);
-    for it in &fit.history {
-        rows.append(iteration_dict(py, it)?)?;
-    }
-    d.set_item("vnls", fit.vnls)?;
-    d.set_item("objective", fit.objective)?;
-    d.set_item("stop", code)?;
-    d.set_item("message", message)?;
-    d.set_item("converged", fit.stop.converged())?;
-    d.set_item("interrupted", fit.stop == Stop::Interrupted)?;
-    d.set_item("outer_iterations", fit.outer_iterations)?;
-    d.set_item("n_rejected", fit.rejected())?;
-    d.set_item("lm_iter_s", fit.mean_seconds(StepKind::Lm))?;
-    d.set_item("socp_iter_s", fit.mean_seconds(StepKind::Socp))?;
-    d.set_item("total_s", fit.total_seconds)?;
-    d.set_item("history", rows)?;
-    d.set_item("weights", to_py(py, fit.weights))?;
-    d.set_item("theta", to_py(py, fit.theta))?;
-    Ok(d)
 }
 
 fn free_set(shape: &Shape, free: Option<PyReadonlyArray1<'_, bool>>) -> PyResult<FreeSet> {
@@ -282,7 +213,7 @@ fn l21_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     l21_dict(py, &L21Settings::default())
 }
 
-/// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`. Returns a dict.
+/// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`.
 #[pyfunction]
 #[pyo3(name = "fit_nls", signature = (problem, theta, free, settings, callback=None, stable=None))]
 fn fit_nls_py<'py>(
@@ -293,7 +224,7 @@ fn fit_nls_py<'py>(
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyFitOutcome> {
     let theta = real_vec(&theta);
     let target = target(problem)?;
     let problem = target.objective();
@@ -306,10 +237,10 @@ fn fit_nls_py<'py>(
             levenberg_marquardt(objective, &theta, &free, &settings, monitor)
         })
     })?;
-    fit_dict(py, fit, signalled)
+    PyFitOutcome::new(py, fit, signalled)
 }
 
-/// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`. Returns a dict.
+/// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`.
 #[pyfunction]
 #[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None, stable=None, pinned=None))]
 #[allow(clippy::too_many_arguments)]
@@ -323,7 +254,7 @@ fn fit_l21_py<'py>(
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
     pinned: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>, f64)>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyFitOutcome> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
     let target = target(problem)?;
@@ -347,7 +278,7 @@ fn fit_l21_py<'py>(
             )
         })
     })?;
-    fit_dict(py, fit, signalled)
+    PyFitOutcome::new(py, fit, signalled)
 }
 
 /// The directions a fit keeps its cone steps off (see `socp::Pinned`):
@@ -385,7 +316,7 @@ fn pinned_directions(
     })
 }
 
-/// Warm-started gamma path; returns a list of (gamma, dict), largest gamma first.
+/// Warm-started gamma path: one fit per gamma, largest gamma first.
 #[pyfunction]
 #[pyo3(name = "l21_path", signature = (problem, theta, sup_norms, gammas, free, settings, callback=None, stable=None))]
 #[allow(clippy::too_many_arguments)]
@@ -399,7 +330,7 @@ fn l21_path_py<'py>(
     settings: &Bound<'py, PyDict>,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
-) -> PyResult<Bound<'py, PyList>> {
+) -> PyResult<PyPathOutcome> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
     let gammas = real_vec(&gammas);
@@ -413,16 +344,10 @@ fn l21_path_py<'py>(
             l21_path(objective, &theta, &free, &sup, &gammas, &settings, monitor)
         })
     })?;
-    let out = PyList::empty(py);
-    for (gamma, fit) in fits {
-        out.append((gamma, fit_dict(py, fit, signalled)?))?;
-    }
-    Ok(out)
+    PyPathOutcome::new(py, fits, signalled)
 }
 
-/// One cone step at `theta` with damping `mu` (for tests and inspection):
-/// a dict with `step` (free parameters, or None), `objective`, `status`,
-/// `phi` and `varphi` per group.
+/// One cone step at `theta` with damping `mu` (for tests and inspection).
 #[pyfunction]
 #[pyo3(name = "cone_step", signature = (problem, theta, sup_norms, free, settings, mu))]
 fn cone_step_py<'py>(
@@ -433,7 +358,7 @@ fn cone_step_py<'py>(
     free: Option<PyReadonlyArray1<'py, bool>>,
     settings: &Bound<'py, PyDict>,
     mu: f64,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<PyConeStep> {
     let theta = real_vec(&theta);
     let sup = real_vec(&sup_norms);
     let target = target(problem)?;
@@ -443,20 +368,13 @@ fn cone_step_py<'py>(
     let report = detached(py, || {
         single_cone_step(problem, &theta, &free, &sup, &settings, mu)
     })?;
-    let groups = &report.groups;
-    let d = PyDict::new(py);
-    d.set_item("step", report.step.map(|s| to_py(py, s)))?;
-    d.set_item("objective", report.objective)?;
-    d.set_item("status", report.status)?;
-    d.set_item("phi", to_py(py, groups.iter().map(|g| g.phi).collect()))?;
-    d.set_item(
-        "varphi",
-        to_py(py, groups.iter().map(|g| g.varphi).collect()),
-    )?;
-    Ok(d)
+    Ok(PyConeStep::new(py, report))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyFitOutcome>()?;
+    m.add_class::<PyPathOutcome>()?;
+    m.add_class::<PyConeStep>()?;
     m.add_function(wrap_pyfunction!(cone_step_py, m)?)?;
     m.add_function(wrap_pyfunction!(l21_defaults_py, m)?)?;
     m.add_function(wrap_pyfunction!(fit_nls_py, m)?)?;

@@ -2,7 +2,8 @@
 //! out-of-memory path.
 
 use super::convert::bool_vec;
-use crate::layout::{FreeSet, Shape};
+use super::model_py::ShapeArg;
+use crate::layout::FreeSet;
 use crate::memory::estimate::{FitSizes, Method, TimeSizes};
 use crate::memory::fail_allocation_after;
 use numpy::PyReadonlyArray1;
@@ -10,19 +11,16 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-/// Bytes a fit needs at its peak, by part (`evaluation`, `held`, `step`,
+/// Bytes a fit of a model of `shape` `(n, r, l, nb)` needs at its peak, by part (`evaluation`, `held`, `step`,
 /// `total`), and the `threads` it was estimated for. `method`: "lm" or
 /// "l21"; `frf`: (points, lines) of FRF data; `records`: the lengths of
 /// the time records.
 #[pyfunction]
-#[pyo3(name = "fit_memory", signature = (n, r, l, nb, method, free=None, frf=None, records=None, hold=false, estimate_x0=false, pinned=false))]
+#[pyo3(name = "fit_memory", signature = (shape, method, free=None, frf=None, records=None, hold=false, estimate_x0=false, pinned=false))]
 #[allow(clippy::too_many_arguments)]
 fn fit_memory_py<'py>(
     py: Python<'py>,
-    n: usize,
-    r: usize,
-    l: usize,
-    nb: usize,
+    shape: ShapeArg,
     method: &str,
     free: Option<PyReadonlyArray1<'py, bool>>,
     frf: Option<(usize, usize)>,
@@ -31,7 +29,7 @@ fn fit_memory_py<'py>(
     estimate_x0: bool,
     pinned: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let shape = Shape::new(n, r, l, nb)?;
+    let shape = shape.0;
     let mask = free.as_ref().map(bool_vec);
     let free = FreeSet::for_shape(&shape, mask.as_deref())?;
     let method = match method {

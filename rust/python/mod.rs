@@ -4,6 +4,8 @@
 mod convert;
 mod fit_py;
 mod memory_py;
+mod model_py;
+mod outcome_py;
 mod problem_py;
 mod simulate_py;
 mod time_py;
@@ -36,6 +38,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),
     )?;
+    m.add_class::<model_py::PyModelView>()?;
     problem_py::register(m)?;
     fit_py::register(m)?;
     memory_py::register(m)?;

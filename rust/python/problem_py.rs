@@ -1,33 +1,28 @@
 //! `Problem` and `frequency_response` for Python.
 
 use super::convert::{bool_vec, complex_vec, detached, guarded, real_vec, to_py};
+use super::model_py::PyModelView;
 use crate::data::FrfData;
-use crate::layout::{FreeSet, Shape};
+use crate::layout::FreeSet;
 use crate::problem::Problem;
 use crate::response::frequency_response;
 use numpy::{Complex64, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 
-/// Frequency response of an LPV model, `(N*F*l*r,)` complex, row-major
-/// `(N, F, l, r)`.
+/// Frequency response of an LPV model at its view's scheduling points,
+/// `(N*F*l*r,)` complex, row-major `(N, F, l, r)`.
 #[pyfunction]
 #[pyo3(name = "frequency_response")]
-#[allow(clippy::too_many_arguments)]
 fn frequency_response_py<'py>(
     py: Python<'py>,
-    n: usize,
-    r: usize,
-    l: usize,
-    nb: usize,
-    theta: PyReadonlyArray1<'py, f64>,
-    basis: PyReadonlyArray1<'py, f64>,
-    n_points: usize,
+    view: &Bound<'py, PyModelView>,
     z: PyReadonlyArray1<'py, Complex64>,
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
-    let shape = Shape::new(n, r, l, nb)?;
-    let (theta, basis, z) = (real_vec(&theta), real_vec(&basis), complex_vec(&z));
-    let out = detached(py, || {
-        frequency_response(&shape, &theta, &basis, n_points, &z)
+    let view = view.get();
+    let (shape, theta, n_points) = (view.shape(), view.theta(), view.n_points());
+    let z = complex_vec(&z);
+    let out = view.with_basis(py, |basis| {
+        detached(py, || frequency_response(shape, theta, basis, n_points, &z))
     })?;
     Ok(to_py(py, out))
 }
@@ -40,31 +35,25 @@ pub struct PyProblem {
 
 #[pymethods]
 impl PyProblem {
-    /// Build from flat arrays: `g` and `sigma` of length `N*F*l*r`
-    /// (row-major `(N, F, l, r)`), `basis` of length `N*Nb`, `z` of length `F`.
+    /// Build from the model's view at the data's scheduling points (its
+    /// shape and basis values; the fits pass their own `theta`), `z` of
+    /// length `F`, `g` and `sigma` of length `N*F*l*r` (row-major `(N, F, l, r)`).
     #[new]
-    #[allow(clippy::too_many_arguments)]
     fn new(
-        n: usize,
-        r: usize,
-        l: usize,
-        nb: usize,
-        n_points: usize,
+        py: Python<'_>,
+        view: &Bound<'_, PyModelView>,
         z: PyReadonlyArray1<'_, Complex64>,
         g: PyReadonlyArray1<'_, Complex64>,
         sigma: PyReadonlyArray1<'_, f64>,
-        basis: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<Self> {
-        let (z, g, sigma, basis) = (
-            complex_vec(&z),
-            complex_vec(&g),
-            real_vec(&sigma),
-            real_vec(&basis),
-        );
-        let inner = guarded(|| {
-            let shape = Shape::new(n, r, l, nb)?;
-            let data = FrfData::new(n_points, l, r, z, g, &sigma)?;
-            Problem::new(shape, data, &basis)
+        let view = view.get();
+        let (shape, n_points) = (*view.shape(), view.n_points());
+        let (z, g, sigma) = (complex_vec(&z), complex_vec(&g), real_vec(&sigma));
+        let inner = view.with_basis(py, |basis| {
+            guarded(|| {
+                let data = FrfData::new(n_points, shape.l, shape.r, z, g, &sigma)?;
+                Problem::new(shape, data, basis)
+            })
         })?;
         Ok(PyProblem { inner })
     }

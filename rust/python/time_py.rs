@@ -3,8 +3,9 @@
 //! functions find the cost they minimise.
 
 use super::convert::{bool_vec, detached, guarded, real_vec, to_py};
+use super::model_py::ShapeArg;
 use super::problem_py::PyProblem;
-use crate::layout::{FreeSet, Shape};
+use crate::layout::FreeSet;
 use crate::objective::Objective;
 use crate::sum::Sum;
 use crate::time::{InitialState, Record, StageTimes, TimeProblem};
@@ -13,7 +14,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-/// Output error of time records: `u`, `psi`, `y` and `sigma` hold one flat
+/// Output error of time records of a model of `shape` `(n, r, l, nb)`: `u`, `psi`, `y` and `sigma` hold one flat
 /// row-major array per record (`T x r`, `T x Nb`, `T x l`, `T x l`); `dt`
 /// the sample time of a continuous-time model (None: discrete time); `x0`
 /// "estimate", "zero" or "given" (with `x0_values`, `records x n`).
@@ -48,13 +49,10 @@ fn stage_dict<'py>(py: Python<'py>, t: &StageTimes) -> PyResult<Bound<'py, PyDic
 #[pymethods]
 impl PyTimeProblem {
     #[new]
-    #[pyo3(signature = (n, r, l, nb, u, psi, y, sigma, dt=None, x0="estimate", x0_values=None, skip=0))]
+    #[pyo3(signature = (shape, u, psi, y, sigma, dt=None, x0="estimate", x0_values=None, skip=0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        n: usize,
-        r: usize,
-        l: usize,
-        nb: usize,
+        shape: ShapeArg,
         u: Vec<PyReadonlyArray1<'_, f64>>,
         psi: Vec<PyReadonlyArray1<'_, f64>>,
         y: Vec<PyReadonlyArray1<'_, f64>>,
@@ -64,7 +62,7 @@ impl PyTimeProblem {
         x0_values: Option<PyReadonlyArray1<'_, f64>>,
         skip: usize,
     ) -> PyResult<Self> {
-        let shape = Shape::new(n, r, l, nb)?;
+        let shape = shape.0;
         let k = u.len();
         if psi.len() != k || y.len() != k || sigma.len() != k {
             return Err(PyValueError::new_err(format!(

@@ -2,6 +2,7 @@
 //! frozen response and the check points of a scheduling range.
 
 use super::convert::{complex_vec, detached, guarded, real_vec, to_py};
+use super::model_py::PyModelView;
 use crate::error::invalid;
 use crate::layout::Shape;
 use crate::sensitivity::lti_jacobian;
@@ -10,24 +11,21 @@ use numpy::{Complex64, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 
 /// Jacobian of the frozen response with respect to the frozen LTI
-/// parameters, flat complex, row-major `(N, F, l, r, lti_len)`.
+/// parameters at the view's scheduling points, flat complex, row-major
+/// `(N, F, l, r, lti_len)`.
 #[pyfunction]
 #[pyo3(name = "lti_jacobian")]
-#[allow(clippy::too_many_arguments)]
 fn lti_jacobian_py<'py>(
     py: Python<'py>,
-    n: usize,
-    r: usize,
-    l: usize,
-    nb: usize,
-    theta: PyReadonlyArray1<'py, f64>,
-    basis: PyReadonlyArray1<'py, f64>,
-    n_points: usize,
+    view: &Bound<'py, PyModelView>,
     z: PyReadonlyArray1<'py, Complex64>,
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
-    let shape = Shape::new(n, r, l, nb)?;
-    let (theta, basis, z) = (real_vec(&theta), real_vec(&basis), complex_vec(&z));
-    let out = detached(py, || lti_jacobian(&shape, &theta, &basis, n_points, &z))?;
+    let view = view.get();
+    let (shape, theta, n_points) = (view.shape(), view.theta(), view.n_points());
+    let z = complex_vec(&z);
+    let out = view.with_basis(py, |basis| {
+        detached(py, || lti_jacobian(shape, theta, basis, n_points, &z))
+    })?;
     Ok(to_py(py, out))
 }
 
@@ -39,22 +37,23 @@ fn stability_margin_py(poles: PyReadonlyArray1<'_, Complex64>, discrete: bool) -
     margin(&complex_vec(&poles), discrete)
 }
 
-/// Check points of a scheduling range for fits that keep stability:
-/// `basis` holds `psi_1..psi_Nb` at `n_points` points, row-major; every
-/// `stride`-th point is checked first; a margin below `tol` is unstable.
+/// Check points of a scheduling range for fits that keep stability: the
+/// model's view at the points (its shape and basis values; the margins
+/// are taken at the `theta` each call passes); every `stride`-th point is
+/// checked first; a margin below `tol` is unstable.
 #[pyclass(name = "FrozenRange", module = "lpvid._core", frozen)]
 pub struct PyFrozenRange {
     pub(crate) inner: FrozenRange,
     pub(crate) tol: f64,
+    shape: Shape,
 }
 
 #[pymethods]
 impl PyFrozenRange {
     #[new]
     fn new(
-        nb: usize,
-        basis: PyReadonlyArray1<'_, f64>,
-        n_points: usize,
+        py: Python<'_>,
+        view: &Bound<'_, PyModelView>,
         stride: usize,
         discrete: bool,
         tol: f64,
@@ -62,9 +61,12 @@ impl PyFrozenRange {
         if !(tol.is_finite() && tol >= 0.0) {
             return Err(invalid("tol", format!("expected a finite number >= 0, got {tol}")).into());
         }
-        let basis = real_vec(&basis);
-        let inner = guarded(|| FrozenRange::new(nb, &basis, n_points, stride, discrete))?;
-        Ok(PyFrozenRange { inner, tol })
+        let view = view.get();
+        let (shape, n_points) = (*view.shape(), view.n_points());
+        let inner = view.with_basis(py, |basis| {
+            guarded(|| FrozenRange::new(shape.nb, basis, n_points, stride, discrete))
+        })?;
+        Ok(PyFrozenRange { inner, tol, shape })
     }
 
     /// Number of check points.
@@ -72,39 +74,21 @@ impl PyFrozenRange {
         self.inner.len()
     }
 
-    /// The margin at every check point.
+    /// The margin at every check point of the model with parameters `theta`.
     fn margins<'py>(
         &self,
         py: Python<'py>,
-        n: usize,
-        r: usize,
-        l: usize,
         theta: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let theta = real_vec(&theta);
-        let shape = Shape::new(n, r, l, self.nb())?;
-        let out = detached(py, || self.inner.margins(&shape, &theta))?;
+        let out = detached(py, || self.inner.margins(&self.shape, &theta))?;
         Ok(to_py(py, out))
     }
 
     /// `(index, margin)` of the smallest margin the coarse-then-fine search finds.
-    fn worst(
-        &self,
-        py: Python<'_>,
-        n: usize,
-        r: usize,
-        l: usize,
-        theta: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<(usize, f64)> {
+    fn worst(&self, py: Python<'_>, theta: PyReadonlyArray1<'_, f64>) -> PyResult<(usize, f64)> {
         let theta = real_vec(&theta);
-        let shape = Shape::new(n, r, l, self.nb())?;
-        detached(py, || self.inner.worst(&shape, &theta, self.tol))
-    }
-}
-
-impl PyFrozenRange {
-    fn nb(&self) -> usize {
-        self.inner.nb()
+        detached(py, || self.inner.worst(&self.shape, &theta, self.tol))
     }
 }
 

@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid import _core
 from lpvid._checks import positive_float, real_array
+from lpvid._view import model_view
 from lpvid.cost import gauss_newton
 from lpvid.data import FrfData, z_points
 from lpvid.errors import ConvergenceWarning
@@ -170,7 +171,7 @@ class Covariance:
         for first in range(0, n_p, chunk):
             sl = slice(first, min(first + chunk, n_p))
             k = sl.stop - sl.start
-            jac = _core.lti_jacobian(n, r, l, nb, m.theta, psi[sl].ravel(), k, z)
+            jac = _core.lti_jacobian(model_view(m, psi[sl]), z)
             jac = jac.reshape(k, f.size * l * r, lti)
             var = np.einsum("mau,mau->ma", jac @ cov[sl], jac.conj()).real
             out[sl] = np.sqrt(np.maximum(var, 0.0)).reshape(k, f.size, l, r)

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid import _core
+from lpvid._view import model_view
 from lpvid.data import z_points
 from lpvid.model import LpvModel
 from lpvid.trust.covariance import band_radius, coefficient_weights, frozen_blocks
@@ -64,7 +65,7 @@ def frozen_grams(
     for first in range(0, m, chunk):
         sl = slice(first, min(first + chunk, m))
         k = sl.stop - sl.start
-        jac = _core.lti_jacobian(n, r, l, nb, model.theta, psi[sl].ravel(), k, z)
+        jac = _core.lti_jacobian(model_view(model, psi[sl]), z)
         x = jac.reshape(k, rows, lti) * np.sqrt(wt[sl])[:, :, None]
         x = np.concatenate([x.real, x.imag], axis=1)
         out[sl] = x.transpose(0, 2, 1) @ x

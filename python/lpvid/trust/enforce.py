@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 
 from lpvid import _core
+from lpvid._core import FitOutcome
+from lpvid._view import model_view
 from lpvid.frozen import frozen_poles
 from lpvid.model import LpvModel
 from lpvid.trust.ranges import as_convention, box_grid, check_range
@@ -61,10 +63,8 @@ def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[
         pts, stride = box_grid(pairs, BOX_POINTS), 1
         if extra:
             pts = np.concatenate([pts, np.asarray(extra, dtype=float).reshape(-1, len(pairs))])
-    psi = model.basis_values(pts)
-    return _core.FrozenRange(
-        model.n_basis, psi.ravel(), pts.shape[0], stride, model.Ts is not None, STABLE_TOL
-    )
+    view = model_view(model, model.basis_values(pts))
+    return _core.FrozenRange(view, stride, model.Ts is not None, STABLE_TOL)
 
 
 def stabilised(model: LpvModel, p_range: Any = None, margin: float = 1e-3) -> LpvModel:
@@ -116,9 +116,9 @@ def _with_A(model: LpvModel, A: Any) -> LpvModel:
 def run_stable(
     model: LpvModel,
     p_range: Any,
-    run: Callable[[Any], dict[str, Any]],
-) -> dict[str, Any]:
-    """Run a fit that keeps stability: ``run(check_points)`` returns the core's result dict.
+    run: Callable[[Any], FitOutcome],
+) -> FitOutcome:
+    """Run a fit that keeps stability: ``run(check_points)`` returns the core's outcome.
 
     Raises
     ------
@@ -132,8 +132,7 @@ def run_stable(
     pairs = check_range(model, p_range)
     start = stability(model, as_convention(pairs), quadratic=False)
     points = check_points(model, pairs, [])
-    n, r, l, _ = model.shape
-    _, at_points = points.worst(n, r, l, model.theta)
+    _, at_points = points.worst(model.theta)
     if not start.stable or not at_points >= STABLE_TOL:
         what = "unstable" if not start.stable else "closer to the stability boundary than allowed"
         raise ValueError(
@@ -143,12 +142,11 @@ def run_stable(
             "lpvid.trust.enforce.stabilised(model)) or narrow p_range"
         )
     extra: list[Any] = []
-    raw: dict[str, Any] = {}
     for _ in range(MAX_ROUNDS):
         raw = run(points if not extra else check_points(model, pairs, extra))
-        if raw.get("interrupted"):
+        if raw.interrupted:
             return raw
-        fitted = model.with_theta(raw["theta"])
+        fitted = model.with_theta(raw.theta)
         rep = stability(fitted, start.p_range, quadratic=False)
         if rep.stable:
             return raw
