@@ -7,6 +7,8 @@ ends, so the shift the docstring promises is known in closed form.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -150,19 +152,18 @@ def test_check_points_cover_the_box_of_two_parameters():
     """Several parameters: the core checks a grid over the whole box, plus the extra points."""
     m = _two_parameter()
     pairs = [(-1.0, 1.0), (0.0, 2.0)]
-    n, r, l, _ = m.shape
     points = check_points(m, pairs, [])
     side = int(np.floor(np.sqrt(BOX_POINTS)))
     assert len(points) == side * side
     g = np.linspace(-1.0, 1.0, side)
     h = np.linspace(0.0, 2.0, side)
     grid = np.array([(a, b) for a in g for b in h])
-    got = np.sort(points.margins(n, r, l, m.theta))
+    got = np.sort(points.margins(m.theta))
     np.testing.assert_allclose(got, np.sort(_frozen_margins(m, grid)), rtol=1e-9, atol=1e-12)
     extra = [np.array([0.123, 1.777]), np.array([-0.9, 0.05])]
     more = check_points(m, pairs, extra)
     assert len(more) == side * side + 2
-    with_extra = np.sort(more.margins(n, r, l, m.theta))
+    with_extra = np.sort(more.margins(m.theta))
     want = np.sort(_frozen_margins(m, np.concatenate([grid, np.array(extra)])))
     np.testing.assert_allclose(with_extra, want, rtol=1e-9, atol=1e-12)
 
@@ -170,7 +171,6 @@ def test_check_points_cover_the_box_of_two_parameters():
 def test_check_points_of_one_parameter_with_extra_points():
     """One parameter: CHECK_POINTS evenly over the range, an extra point added exactly once."""
     m = _rotating(a=0.8, c=-2.0, w=1.5)
-    n, r, l, _ = m.shape
     points = check_points(m, [(-1.0, 1.0)], [])
     assert len(points) == CHECK_POINTS
     more = check_points(m, [(-1.0, 1.0)], [0.1234, 1.0])  # 1.0 is already a check point
@@ -179,7 +179,7 @@ def test_check_points_of_one_parameter_with_extra_points():
     psi = m.basis(p)[:, 0]
     poles = np.array([np.linalg.eigvals(m.A[0] + s * m.A[1]) for s in psi])
     want = np.min(-poles.real / np.abs(poles), axis=1)
-    np.testing.assert_allclose(more.margins(n, r, l, m.theta), want, rtol=1e-9)
+    np.testing.assert_allclose(more.margins(m.theta), want, rtol=1e-9)
 
 
 def test_run_stable_gives_up_after_its_rounds_naming_the_last_place():
@@ -191,7 +191,9 @@ def test_run_stable_gives_up_after_its_rounds_naming_the_last_place():
 
     def run(points):
         calls.append(len(points))
-        return {"theta": _rotating(a=next(slopes), c=0.5, w=1.5).theta}
+        return SimpleNamespace(
+            theta=_rotating(a=next(slopes), c=0.5, w=1.5).theta, interrupted=False
+        )
 
     with pytest.raises(RuntimeError, match=r"after 3 rounds .*\(at p = 1\)"):
         run_stable(m, None, run)
@@ -206,4 +208,4 @@ def test_run_stable_refuses_an_unstable_start():
         match=r"stable=True needs a stable start.* p = 1 is unstable .*start from a stable model "
         r"\(e\.g\. lpvid\.trust\.enforce\.stabilised\(model\)\) or narrow p_range$",
     ):
-        run_stable(m, None, lambda points: {})
+        run_stable(m, None, lambda points: SimpleNamespace())
