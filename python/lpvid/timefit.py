@@ -17,7 +17,7 @@ from lpvid.layout import free_mask
 from lpvid.memory import check_fit
 from lpvid.model import LpvModel
 from lpvid.results import FitResult, L21Result
-from lpvid.settings import L21Settings
+from lpvid.settings import L21Settings, LmSettings
 from lpvid.timecost import TimeCost, build_time_problem
 
 __all__ = ["fit_time"]
@@ -166,7 +166,8 @@ def fit_time(
     if g == 0.0:
         if settings is not None:
             raise ValueError("settings: the l2,1 settings apply with gamma > 0 only")
-        lm = {"xtol": 1e-10, "ftol": 1e-10, "gtol": 0.0, "lambda0": 1e-2}
+        defaults = LmSettings()
+        lm = {k: getattr(defaults, k) for k in ("xtol", "ftol", "gtol", "lambda0")}
         for key in options:
             if key not in lm:
                 raise TypeError(
@@ -174,7 +175,7 @@ def fit_time(
                     f"expected one of {sorted(lm)}"
                 )
         lm.update(options)
-        core_settings = lm_settings(100 if max_iter is None else max_iter, **lm)
+        core_settings = lm_settings(defaults.max_iter if max_iter is None else max_iter, **lm)
         raw = _core.fit_nls(problem, model.theta, free, core_settings, _monitor(callback))
         result: FitResult | L21Result = FitResult._from_core(raw, model, problem.n_residuals)
         if warn:
