@@ -100,7 +100,7 @@ def test_time_unit_defaults_to_seconds_and_unknown_units_are_refused():
         "f.mat",
         "fortnights",
     )
-    for unit in [" furlong/s ", "rad/fortnight", "deg/s", "Hz/s"]:
+    for unit in [" furlong/s ", "rad/fortnight", "deg/s", "Hz/s", "deg/TimeUnit"]:
         refused(
             FileError,
             f"w: unknown frequency unit {unit.strip()!r} (known: Hz, kHz, rad/s, rpm, "
@@ -108,6 +108,7 @@ def test_time_unit_defaults_to_seconds_and_unknown_units_are_refused():
             hz_per_unit,
             unit,
             "w",
+            "fortnights",  # the TimeUnit is not looked at for another unit
         )
 
 
@@ -120,6 +121,15 @@ def test_record_checked_converts_its_axis_to_hz_and_names_itself():
     np.testing.assert_allclose(out.freqs_hz, [1.0, 2.0, 3.0], rtol=1e-15)
     assert out.freq_unit is None and out.units == "m/N"
     np.testing.assert_array_equal(out.values, w * 1j)
+    # values as the reader gave them (a list, a column) become one value per line
+    col = Record("a.csv", "c", FRF, Channel(), Channel(), [1.0, 2.0], [[1j], [2j]]).checked()
+    assert isinstance(col.values, np.ndarray) and col.values.shape == (2,)
+    np.testing.assert_array_equal(col.values, [1j, 2j])
+    refused(
+        FileError,
+        "a.csv, column 'x': negative frequency -1 Hz",
+        Record("a.csv", "column 'x'", FRF, Channel(), Channel(), [-1.0, 2.0], [1.0, 1.0]).checked,
+    )
     bad = Record("a.csv", "column 'x'", FRF, Channel(), Channel(), w, w, None, "deg")
     refused(
         FileError,
@@ -138,7 +148,7 @@ def test_check_axis_accepts_an_increasing_axis_and_names_what_is_wrong():
     refused(
         FileError, "w: frequency axis has NaN or Inf at line 3", check_axis, [1, 2, np.inf], "w"
     )
-    refused(FileError, "w: negative frequency -0.5 Hz", check_axis, [1.0, -0.5, -2.0], "w")
+    refused(FileError, "w: negative frequency -0.5 Hz", check_axis, [0.0, 0.5, -0.5, -2.0], "w")
     refused(
         FileError,
         "w: frequencies must increase strictly; line 3 (2 Hz) follows 2 Hz",
@@ -169,6 +179,17 @@ def test_check_values_names_the_bad_lines_by_frequency():
         "the export",
         check_values,
         five,
+        f,
+        "w",
+    )
+    six = np.full(8, np.nan)
+    six[[2, 6]] = 0.0
+    refused(
+        FileError,
+        "w: NaN or Inf at 6 of 8 frequency lines (1, 2, 4, 5, 6 and 1 more Hz); remove those "
+        "lines or fix the export",
+        check_values,
+        six,
         f,
         "w",
     )
@@ -266,6 +287,20 @@ def test_sigma_from_coherence_refuses_a_coherence_of_zero_or_one_in_full():
         0.5,
         10,
     )
+
+
+def test_single_precision_coherence_and_variance_give_sigma_in_double_precision():
+    """Rejects: float32 data (as a MATLAB file may hold) computed in single precision."""
+    coh32 = np.array([0.9, 0.3, 0.7], dtype=np.float32)
+    var32 = np.array([2.0, 3.0, 0.1], dtype=np.float32)
+    c, v = coh32.astype(np.float64), var32.astype(np.float64)
+    got = sigma_from_coherence([1.0, 2.0, 3.0], coh32, 20)
+    want = np.array([1.0, 2.0, 3.0]) * np.sqrt((1 - c) / (20 * c))
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, want, rtol=1e-13)
+    got = sigma_from_variance(var32)
+    assert got.dtype == np.float64
+    np.testing.assert_allclose(got, [math.sqrt(x) for x in v], rtol=1e-14)
 
 
 def test_sigma_from_variance_and_relative():
@@ -586,7 +621,10 @@ def test_records_by_nodes_and_what_a_missing_pair_names():
         rec("record 2", out=node(3, 2, "head"), inp=node(1, 3, "shaker"), file="a.uff", value=2.0),
         rec("record 3", COHERENCE, out=node(3, 2), inp=node(1, 3), file="a.uff", value=0.5),
     ]
-    csv = [rec("column 'x'", out=Channel(None), inp=Channel("u"), file="b.csv")]
+    csv = [
+        rec("column 'x'", out=Channel(None), inp=Channel("u"), file="b.csv"),
+        rec("column 'z'", out=Channel("z"), inp=Channel(None), file="b.csv"),
+    ]
     out_y = ChannelSpec("y", node=3, direction=2)
     inp = ChannelSpec("u", node=1)
     grid = select_records(uff, [out_y], [inp], "labels", [FRF, COHERENCE], "a.uff")
@@ -597,7 +635,7 @@ def test_records_by_nodes_and_what_a_missing_pair_names():
         "a.uff, b.csv: no FRF record matches output 'y' / input 'u'; a.uff (looked for entity "
         "name 'tip' / node 1) holds the FRF records 'head' node 3 +X / 'shaker' node 1 +Z "
         "(record 1), 'head' node 3 +Y / 'shaker' node 1 +Z (record 2); b.csv (looked for label "
-        "'tip' / label 'u') holds the FRF records '/u'",
+        "'tip' / label 'u') holds the FRF records '/u', 'z/'",
         select_records,
         uff + csv,
         [ChannelSpec("y", label="tip")],
