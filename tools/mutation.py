@@ -67,6 +67,7 @@ PY_TESTS = {
         "tests/test_matlab.py",
         "tests/test_table.py",
         "tests/test_uff.py",
+        "tests/test_reader_parts.py",
     ],
 }
 
