@@ -278,38 +278,25 @@ def identify(
         of growth (:func:`lpvid.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
+    held = dict(
+        order=order,
+        basis=basis,
+        gammas=gammas,
+        validation=validation,
+        fixed=fixed,
+        forms=forms,
+        routes=routes,
+        tolerance=tolerance,
+        settings=settings,
+        time_data=time_data,
+        stable=stable,
+        refit=refit,
+    )
     if isinstance(data, Problem):
-        refuse_beside(
-            order=order,
-            basis=basis,
-            gammas=gammas,
-            validation=validation,
-            fixed=fixed,
-            forms=forms,
-            routes=routes,
-            tolerance=tolerance,
-            settings=settings,
-            time_data=time_data,
-            stable=stable,
-            refit=refit,
-        )
+        refuse_beside(**held)
         problem = data
     else:
-        problem = problem_of(
-            data,
-            order,  # type: ignore[arg-type]
-            basis,  # type: ignore[arg-type]
-            gammas,
-            validation,
-            fixed,
-            forms=forms,
-            routes=routes,
-            tolerance=tolerance,
-            settings=settings,
-            time_data=time_data,
-            stable=stable,
-            refit=refit,
-        )
+        problem = problem_of(data, **held)
     executor = check_executor(executor)
     return _run(problem, progress=progress, executor=executor, t0=t0)
 
