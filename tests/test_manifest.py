@@ -405,3 +405,40 @@ def test_sigma_for_some_points_only_says_how_to_fix_it(tmp_path):
     )
     with pytest.raises(ValueError, match=f"^{message}$"):
         lpvid.FrfData.from_files(path)
+
+
+def test_read_experiment_returns_the_names_and_where_they_came_from(tmp_path):
+    """Rejects names, parameters, the manifest path or the files lost, or lines not 'same'."""
+    from lpvid.readers.experiment import read_experiment
+
+    for q in range(2):
+        write_mat(tmp_path / f"t{q}.mat", F, frf(q))
+    header = 'outputs = ["head", "carriage"]\ninputs = ["torque"]\nparameters = ["side"]'
+    path = write_manifest(tmp_path / "m.toml", header, [(float(q), f"t{q}.mat") for q in range(2)])
+    exp = read_experiment(str(path))
+    assert (exp.outputs, exp.inputs, exp.parameters) == (
+        ("head", "carriage"),
+        ("torque",),
+        ("side",),
+    )
+    assert exp.provenance["manifest"] == str(path)
+    assert [pt["files"] for pt in exp.provenance["points"]] == [["t0.mat"], ["t1.mat"]]
+    assert exp.provenance["lines"] == {"mode": "same", "kept": F.size, "dropped": [0, 0]}
+    np.testing.assert_array_equal(exp.p, [0.0, 1.0])
+
+
+def test_dropped_lines_are_reported_at_the_callers_line(tmp_path):
+    """Rejects the warning of dropped lines pointing into lpvid instead of at the caller."""
+    write_mat(tmp_path / "t0.mat", F, frf(0))
+    write_mat(tmp_path / "t1.mat", F[1:], frf(1)[1:])
+    header = 'outputs = ["head", "carriage"]\ninputs = ["torque"]'
+    path = write_manifest(tmp_path / "m.toml", header, [(0.0, "t0.mat"), (1.0, "t1.mat")])
+    with pytest.warns(UserWarning, match=r"dropped 1 at points\[0\] \(p=0\.0\)$") as caught:
+        lpvid.FrfData.from_files(path, lines="common")
+    assert [Path(w.filename).name for w in caught] == [Path(__file__).name]
+
+
+def test_units_of_coherence_records_are_not_those_of_the_frf():
+    """Rejects a coherence record's own units checked against the FRF's."""
+    chosen = [record(0, "m/N", "r1"), record(0, "1", "c1", kind="coherence")]
+    _check_units(units_manifest(("m",), "N"), chosen, [(0, "frf", 0, 0), (0, "coherence", 0, 0)])
