@@ -168,6 +168,10 @@ BAD = [
     (HEAD + 'sigma = { from = "relative", level = 0 }\n' + POINT, r"^m\.toml: sigma\.level: exp"),
     (HEAD + 'parameters = "a"\n' + POINT, r"^m\.toml: parameters: expected a list of names$"),
     (HEAD + 'parameters = ["a", 3]\n' + POINT, r"^m\.toml: parameters: expected a list of names$"),
+    (
+        "Ts = 1\nsampletime = 2\nrate = 3\n" + HEAD + POINT,
+        r"^m\.toml: unknown key\(s\) rate, sampletime \(known: Ts, description, format, inputs",
+    ),
     # the points
     (HEAD, r"^m\.toml: points: expected one or more \[\[points\]\] tables .*, got nothing$"),
     (HEAD + "points = 3\n", r"^m\.toml: points: expected one or more .*, got int$"),
