@@ -68,6 +68,7 @@ PY_TESTS = {
         "tests/test_table.py",
         "tests/test_uff.py",
         "tests/test_reader_parts.py",
+        "tests/test_manifest.py",
     ],
 }
 
