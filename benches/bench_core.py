@@ -25,7 +25,7 @@ import numpy as np
 
 import lpvid
 from lpvid import _core
-from lpvid.cost import build_problem
+from lpvid.fit.cost import build_problem
 
 
 def gantry_size_problem(seed: int = 0) -> tuple[lpvid.LpvModel, lpvid.FrfData]:

@@ -9,7 +9,7 @@ stability check, the model and result files). The first figure also pays
 for importing matplotlib.pyplot. With ``--repeat`` the report is written
 again that many times and the medians are printed (a warm process: what the
 figures cost without the imports). Last, the whole report as ``lpvid demo``
-writes it: the figures drawn by a :class:`lpvid.report.FigurePool` whose
+writes it: the figures drawn by a :class:`lpvid.report.markdown.FigurePool` whose
 workers started while identify ran (a pause as long as identify stands in).
 
 Run: python benches/bench_demo.py [--repeat 3] [--data gantry|stage]
@@ -32,7 +32,7 @@ from lpvid import plots, report  # noqa: E402
 
 IMPORT_S = time.perf_counter() - t_import
 
-#: The figure builders the report calls (lpvid.report._figures).
+#: The figure builders the report calls (lpvid.report.markdown._figures).
 BUILDERS = (
     "frf_fit",
     "magnitude_surface",

@@ -86,7 +86,7 @@ def gap(res: lpvid.IdentifyResult, k: int, sigma: np.ndarray | None) -> np.ndarr
             out.append(0.5 * (pts[i] + pts[i + 1]))
             pts = np.sort(np.append(pts, out[-1]))
         return np.array(out)
-    grid = lpvid.trust.nextpoints.default_candidates(res.data.p_range, p)
+    grid = lpvid.experiment.nextpoints.default_candidates(res.data.p_range, p)
     return farthest(p, grid, k)
 
 

@@ -5,7 +5,7 @@ For each set, with and without its validation data, runs
 groups kept, V_NLS over its floor, validation V_NLS over its floor (judged
 afterwards when the run had no validation data), whether the fit was
 pinned (its steps kept off the directions that are flat at the data,
-:mod:`lpvid.pathfit`), cone steps and seconds; then the chosen entry and the
+:mod:`lpvid.pipeline.path`), cone steps and seconds; then the chosen entry and the
 time of the path and of the whole run.
 
 Run: python benches/bench_path.py [--sets stage gantry]

@@ -9,7 +9,7 @@ iteration and cone step (with Clarabel's interior-point iterations), the
 number of steps, the chosen model's V_NLS and validation V_NLS against their
 noise floors and the groups kept, and the peak memory of the process beside
 what it held before identify and lpvid's estimate of identify's peak
-(``lpvid.memory.pipeline_memory``, the figure identify checks before it runs).
+(``lpvid.fit.memory.pipeline_memory``, the figure identify checks before it runs).
 
 Each rung runs in a fresh process (peak memory is per rung). The machines
 are shared and noisy: compare medians over --repeat runs.
@@ -128,7 +128,7 @@ def measured(rung: Rung, physics, p: np.ndarray, rng: np.random.Generator) -> lp
     """
     freqs = np.linspace(10.0, 400.0, rung.lines)
     z = 2j * np.pi * freqs
-    G = np.stack([lpvid.frozen.lti_frf(*physics(s), z) for s in p])
+    G = np.stack([lpvid.model.frozen.lti_frf(*physics(s), z) for s in p])
     rms = np.sqrt(np.mean(np.abs(G) ** 2, axis=1, keepdims=True))
     sigma = np.broadcast_to(0.01 * rms, G.shape)
     noise = (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
@@ -169,7 +169,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
     data, validation, n, basis, note = problem(name)
     settings = None if cone_tol is None else lpvid.L21Settings(max_outer=10, cone_tol=cone_tol)
     before_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    estimate_mb = lpvid.memory.pipeline_memory(data, n, basis)[0] / 2**20
+    estimate_mb = lpvid.fit.memory.pipeline_memory(data, n, basis)[0] / 2**20
     t0 = time.perf_counter()
 
     def say(message: str) -> None:

@@ -34,7 +34,7 @@ from bench_core import median_time
 from bench_simulate import gantry_size_model
 
 import lpvid
-from lpvid.timecost import build_time_problem
+from lpvid.fit.timecost import build_time_problem
 
 
 def main() -> None:

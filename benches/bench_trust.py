@@ -24,10 +24,10 @@ import numpy as np
 from bench_core import median_time
 
 import lpvid
-from lpvid.cost import build_problem
-from lpvid.trust.enforce import check_points
-from lpvid.trust.ranges import check_range
-from lpvid.trust.refit import dropped_mask
+from lpvid.fit.cost import build_problem
+from lpvid.stable.enforce import check_points
+from lpvid.stable.ranges import check_range
+from lpvid.trust.support import dropped_mask
 
 
 def main() -> None:

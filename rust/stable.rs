@@ -3,7 +3,7 @@
 //! stable set.
 //!
 //! The stability margin of a frozen model (the rule of Python's
-//! `lpvid.frozen.stability_margin`, which a test compares with this one):
+//! `lpvid.model.frozen.stability_margin`, which a test compares with this one):
 //! discrete time `1 - max |lambda|`; continuous time the smallest
 //! `-Re lambda / |lambda|` over the poles (the damping ratio of the least
 //! damped pole; 0 for a pole at the origin). A frozen model is stable when

@@ -13,7 +13,7 @@ from systems import first_order_frf
 import lpvid
 from lpvid import plots
 from lpvid.testing import noisy_data, random_lpv
-from lpvid.trust.covariance import band_radius
+from lpvid.trust.uncertainty import band_radius
 
 
 def _db(x):
@@ -86,7 +86,7 @@ def test_report_has_the_trust_section_and_figures(tmp_path, monkeypatch, plt):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
         res = lpvid.identify(data, 1, basis, validation=val, fixed={"D": True}, gammas=[0.1])
-    path = lpvid.report.write_report(res, tmp_path)
+    path = lpvid.report.markdown.write_report(res, tmp_path)
     text = path.read_text()
     assert "## Between the points: uncertainty and stability" in text
     assert "parameter covariance" in text and "frozen models stable" in text

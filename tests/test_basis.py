@@ -54,6 +54,6 @@ def test_degree_zero_is_an_lti_model():
 
 @pytest.mark.parametrize("basis", [lpvid.Polynomial(3, domain=(1, 2)), lpvid.Legendre(2, (0, 1))])
 def test_to_dict_round_trip(basis):
-    from lpvid.basis import basis_from_dict
+    from lpvid.data.basis import basis_from_dict
 
     assert basis_from_dict(basis.to_dict()) == basis

@@ -9,11 +9,11 @@ import pytest
 
 import lpvid
 from lpvid import _core
-from lpvid.cost import gauss_newton
-from lpvid.data import z_points
-from lpvid.similarity import free_similarity_directions
+from lpvid.data.frf import z_points
+from lpvid.fit.cost import gauss_newton
+from lpvid.model.similarity import free_similarity_directions
 from lpvid.testing import random_lpv
-from lpvid.trust.covariance import _lti_index, band_radius, pseudo_inverse
+from lpvid.trust.uncertainty import _lti_index, band_radius, pseudo_inverse
 
 BAND = band_radius(0.95)
 
@@ -185,7 +185,7 @@ def test_frf_std_in_chunks_and_at_one_frequency(rng, monkeypatch):
     whole = cov.frf_std(f, p)
     per_point = f.size * cov.lti_covariance(p).shape[-1]  # l = r = 1
     for chunk in (1, 3):
-        monkeypatch.setattr(lpvid.trust.covariance, "_CHUNK_ROWS", -(-chunk * per_point // 8))
+        monkeypatch.setattr(lpvid.trust.uncertainty, "_CHUNK_ROWS", -(-chunk * per_point // 8))
         np.testing.assert_allclose(cov.frf_std(f, p), whole, rtol=1e-9)
     np.testing.assert_allclose(cov.frf_std(0.2, p), whole[:, 1:2], rtol=1e-9)
     with pytest.raises(ValueError, match=r"^freqs_hz: expected a 0 or 1-dimensional array"):

@@ -1,4 +1,4 @@
-"""lpvid.trust.enforce.stabilised in continuous time, against the poles computed by hand.
+"""lpvid.stable.enforce.stabilised in continuous time, against the poles computed by hand.
 
 A(p) = [[a p + c, w], [-w, a p + c]] has the poles ``a p + c +- j w``: the
 largest real part and the largest magnitude over p in [-1, 1] are at the
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.trust.enforce import (
+from lpvid.stable.enforce import (
     BOX_POINTS,
     CHECK_POINTS,
     MAX_ROUNDS,
@@ -206,6 +206,6 @@ def test_run_stable_refuses_an_unstable_start():
     with pytest.raises(
         ValueError,
         match=r"stable=True needs a stable start.* p = 1 is unstable .*start from a stable model "
-        r"\(e\.g\. lpvid\.trust\.enforce\.stabilised\(model\)\) or narrow p_range$",
+        r"\(e\.g\. lpvid\.stable\.enforce\.stabilised\(model\)\) or narrow p_range$",
     ):
         run_stable(m, None, lambda points: SimpleNamespace())

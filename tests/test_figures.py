@@ -13,7 +13,7 @@ import pytest
 from systems import first_order_frf
 
 import lpvid
-from lpvid.figures import FigureJob, FigurePool, draw, report_jobs, start_drawing
+from lpvid.report.figures import FigureJob, FigurePool, draw, report_jobs, start_drawing
 
 
 @pytest.fixture(scope="module")

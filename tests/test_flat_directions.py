@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.similarity import (
+from lpvid.model.similarity import (
     flat_at_points,
     pointwise_similarity_directions,
     similarity_directions,

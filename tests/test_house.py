@@ -1,4 +1,4 @@
-"""The house check (tools/house_check.py): import cycles and long files."""
+"""The house check (tools/house_check.py): import cycles, long files, the README's package map."""
 
 from __future__ import annotations
 
@@ -20,8 +20,26 @@ def _load_house_check():
 house = _load_house_check()
 
 
-def _project(root: Path, files: dict[str, str]) -> Path:
-    """A project at ``root`` with the package python/lpvid made of ``files``."""
+def _readme(rows: dict[str, str]) -> str:
+    """A README whose package map has one row per folder: ``{folder: may-import cell}``."""
+    lines = [
+        "# p",
+        "",
+        "Text.",
+        "",
+        house.MAP_MARK,
+        "| folder | holds | may import |",
+        "|---|---|---|",
+    ]
+    lines += [f"| `{folder}/` | things | {cell} |" for folder, cell in rows.items()]
+    return "\n".join([*lines, "", "## Next", "| `other/` | not | `map` |", ""])
+
+
+def _project(root: Path, files: dict[str, str], readme: str | None = None) -> Path:
+    """A project at ``root`` with the package python/lpvid made of ``files``.
+
+    Its README maps every folder with nothing to import unless ``readme`` is given.
+    """
     package = root / "python" / "lpvid"
     package.mkdir(parents=True)
     (package / "__init__.py").write_text('"""A synthetic package."""\n')
@@ -29,6 +47,9 @@ def _project(root: Path, files: dict[str, str]) -> Path:
         path = package / name
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
+    folders = sorted({name.split("/")[0] for name in files if "/" in name})
+    text = _readme({f: "(helpers only)" for f in folders}) if readme is None else readme
+    (root / "README.md").write_text(text)
     return root
 
 
@@ -100,7 +121,10 @@ def test_a_clean_package_passes(tmp_path, capsys):
     (root / "rust" / "lib.rs").write_text("fn f() {}\n" * 500)
     assert _cycles(root) == []
     assert house.main([str(root)]) == 0
-    assert "house: 0 import cycle(s), 0 file(s) over 500 lines" in capsys.readouterr().out
+    assert (
+        "house: 0 import cycle(s), 0 file(s) over 500 lines, 0 package map"
+        in capsys.readouterr().out
+    )
 
 
 @pytest.mark.parametrize("where", ["python/lpvid/big.py", "rust/big.rs"])
@@ -124,3 +148,65 @@ def test_tests_and_benches_are_not_counted(tmp_path):
 
 def test_this_repository_keeps_the_house_rules(capsys):
     assert house.main([str(ROOT)]) == 0, capsys.readouterr().out
+
+
+def test_the_map_is_read_from_its_table_only():
+    text = _readme(
+        {"low": "(helpers only)", "mid": "`low/`, `testing`", "top": "`mid/` and `lpvid`"}
+    )
+    assert house.package_map(text) == {
+        "low": set(),
+        "mid": {"low", "testing"},
+        "top": {"mid", "lpvid"},
+    }
+    assert house.package_map("# p\n| `a/` | b | `c/` |\n") is None
+
+
+_LAYERS = {
+    "low/__init__.py": "",
+    "low/a.py": "from lpvid import _helper, errors\n",
+    "mid/__init__.py": "",
+    "mid/b.py": "from lpvid.low.a import x\n",
+    "top/__init__.py": "",
+    "top/c.py": "def f():\n    from lpvid.mid import b\n    import lpvid.testing\n",
+    "_helper.py": "",
+    "errors.py": "",
+    "testing.py": "",
+}
+
+
+def test_imports_the_map_allows_pass(tmp_path, capsys):
+    readme = _readme({"low": "(helpers only)", "mid": "`low/`", "top": "`mid/`, `testing`"})
+    root = _project(tmp_path, _LAYERS, readme)
+    assert house.main([str(root)]) == 0, capsys.readouterr().out
+
+
+def test_an_import_the_map_does_not_allow_is_named(tmp_path, capsys):
+    readme = _readme({"low": "(helpers only)", "mid": "(helpers only)", "top": "`mid/`"})
+    root = _project(tmp_path, _LAYERS, readme)
+    assert house.main([str(root)]) == 1
+    out = capsys.readouterr().out
+    assert (
+        "package map: lpvid.mid.b imports lpvid.low.a, but the map does not let mid/ import low/"
+    ) in out
+    # A deferred import counts, and a public top-level module must be listed too.
+    assert (
+        "package map: lpvid.top.c imports lpvid.testing, "
+        "but the map does not let top/ import testing"
+    ) in out
+    assert "0 import cycle(s), 0 file(s) over 500 lines, 2 package map error(s)" in out
+
+
+def test_folders_missing_from_the_map_or_absent_are_named(tmp_path, capsys):
+    readme = _readme({"low": "(helpers only)", "mid": "`low/`", "gone": "(helpers only)"})
+    root = _project(tmp_path, _LAYERS, readme)
+    assert house.main([str(root)]) == 1
+    out = capsys.readouterr().out
+    assert "package map: python/lpvid/top/ has no row in README.md's map" in out
+    assert "package map: README.md names gone/, which is not a folder of python/lpvid" in out
+
+
+def test_a_readme_without_a_map_fails(tmp_path, capsys):
+    root = _project(tmp_path, {"a.py": ""}, readme="# p\n")
+    assert house.main([str(root)]) == 1
+    assert "package map: README.md has no map" in capsys.readouterr().out

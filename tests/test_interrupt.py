@@ -80,7 +80,7 @@ def test_ctrl_c_in_fit_nls_returns_the_best_model_so_far(python_sigint, gantry):
     assert fit.vnls <= lpvid.vnls(start, data)
     assert fit.vnls == pytest.approx(lpvid.vnls(fit.model, data), rel=1e-12)
     with pytest.raises(KeyboardInterrupt):
-        lpvid.fit.raise_if_interrupted(fit)
+        lpvid.fit.fits.raise_if_interrupted(fit)
 
 
 def test_ctrl_c_in_fit_l21_without_a_callback(python_sigint, gantry):
@@ -132,7 +132,7 @@ def test_ctrl_c_in_the_demo_exits_130_and_writes_nothing(tmp_path):
     # The child gets the default SIGINT disposition whatever this process has,
     # so that Python installs its handler there.
     proc = subprocess.Popen(
-        [sys.executable, "-m", "lpvid.cli", "demo", "--out", str(out), "--no-figures"],
+        [sys.executable, "-m", "lpvid.cli.commands", "demo", "--out", str(out), "--no-figures"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -154,7 +154,7 @@ def test_ctrl_c_in_a_terminal_stops_the_demo_and_its_figure_workers(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "demo"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "lpvid.cli", "demo", "--out", str(out)],
+        [sys.executable, "-m", "lpvid.cli.commands", "demo", "--out", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.cost import gauss_newton
+from lpvid.fit.cost import gauss_newton
 from lpvid.testing import noisy_data, random_lpv
 
 

@@ -14,7 +14,7 @@ import pytest
 
 import lpvid
 from lpvid import _core
-from lpvid.cost import build_problem, gauss_newton
+from lpvid.fit.cost import build_problem, gauss_newton
 from lpvid.testing import noisy_data, random_lpv
 
 

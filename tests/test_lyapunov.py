@@ -1,4 +1,4 @@
-"""The common quadratic Lyapunov function (trust/lyapunov.py): verdicts, certificate, bound.
+"""The common quadratic Lyapunov function (stable/lyapunov.py): verdicts, certificate, bound.
 
 Checked against systems whose answer is known by construction, against cvxpy on the
 vertex LMIs, against numpy eigenvalues of the returned certificate on a dense grid, and
@@ -12,8 +12,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from lpvid.trust import lyapunov
-from lpvid.trust.lyapunov import _mat, _svec, quadratic_stability
+from lpvid.stable import lyapunov
+from lpvid.stable.lyapunov import _mat, _svec, quadratic_stability
 
 clarabel = pytest.importorskip("clarabel")
 

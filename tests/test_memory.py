@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import lpvid
-import lpvid.memory
+import lpvid.fit.memory
 from lpvid import _core
 
 RLIMIT = pytest.importorskip("resource").RLIMIT_AS
@@ -79,7 +79,7 @@ def child(code: str, limit_mb: float | None = None) -> dict:
 def test_the_issue_case_is_refused_before_any_work(monkeypatch):
     model, data = large()
     called = []
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (3 * 10**9, "a 3 GB test"))
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (3 * 10**9, "a 3 GB test"))
     monkeypatch.setattr(_core, "fit_nls", lambda *a, **k: called.append(1))
     with pytest.raises(MemoryError) as info:
         lpvid.fit_nls(model, data, callback=lambda row: called.append(row))
@@ -88,14 +88,14 @@ def test_the_issue_case_is_refused_before_any_work(monkeypatch):
     need = lpvid.fit_memory(model, data)
     # J^T J alone of its 19220 free parameters is 2.96 GB.
     assert need > 2 * 8 * 19220**2
-    assert f"{need} bytes" in message and lpvid.memory.human(need) in message
+    assert f"{need} bytes" in message and lpvid.fit.memory.human(need) in message
     assert "3.00 GB" in message and "a 3 GB test" in message
     assert "19220 free parameters" in message and "N = 5 points, F = 400 lines" in message
 
 
 def test_every_entry_point_checks_before_any_work(monkeypatch):
     model, data = large(n=40, nb=2, lines=100)
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (10**8, "a 100 MB test"))
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (10**8, "a 100 MB test"))
     for name in ("fit_nls", "fit_l21", "l21_path"):
         monkeypatch.setattr(_core, name, lambda *a, **k: pytest.fail("the core was called"))
     td = lpvid.TimeData(np.zeros((300, 2)), np.zeros(300), np.zeros((300, 2)), dt=1e-3)
@@ -117,16 +117,16 @@ def test_every_entry_point_checks_before_any_work(monkeypatch):
 
 def test_select_runs_fewer_pairs_at_once_when_together_they_would_not_fit(monkeypatch):
     needs = [400, 300, 200, 100]
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (650, "a test"))
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (650, "a test"))
     # The two largest together (700) do not fit; one at a time then.
-    assert lpvid.memory.runs_at_once(needs, 2, "select") == 1
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (700, "a test"))
-    assert lpvid.memory.runs_at_once(needs, 2, "select") == 2
+    assert lpvid.fit.memory.runs_at_once(needs, 2, "select") == 1
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (700, "a test"))
+    assert lpvid.fit.memory.runs_at_once(needs, 2, "select") == 2
     # A run too large alone does not count (identify refuses it by itself).
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (350, "a test"))
-    assert lpvid.memory.runs_at_once(needs, 2, "select") == 1
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (350, "a test"))
+    assert lpvid.fit.memory.runs_at_once(needs, 2, "select") == 1
     with pytest.raises(MemoryError, match="smallest about"):
-        lpvid.memory.runs_at_once([400, 500], 2, "select")
+        lpvid.fit.memory.runs_at_once([400, 500], 2, "select")
 
 
 def test_the_estimate_grows_with_the_sizes_as_the_formula_says():
@@ -134,7 +134,7 @@ def test_the_estimate_grows_with_the_sizes_as_the_formula_says():
         sizes = dict(n=20, l=2, r=2, nb=2, frf=(5, 200))
         sizes.update(kw)
         n, l, r, nb = sizes.pop("n"), sizes.pop("l"), sizes.pop("r"), sizes.pop("nb")
-        return lpvid.memory.sizes_memory(n, l, r, nb, **sizes)
+        return lpvid.fit.memory.sizes_memory(n, l, r, nb, **sizes)
 
     base = total()
     P = 3 * 22 * 22
@@ -192,8 +192,8 @@ def test_an_allocation_that_fails_in_the_core_raises_memory_error_with_its_size(
     """The check switched off: the core's own allocation fails under the limit, and says so."""
     out = child(
         """
-        import lpvid.memory
-        lpvid.memory.available_memory = lambda: (None, "unknown")
+        import lpvid.fit.memory
+        lpvid.fit.memory.available_memory = lambda: (None, "unknown")
         model, data = large(n=40, l=1, r=1, nb=1, points=2, lines=64)
         try:
             lpvid.fit_nls(model, data, max_iter=2)
@@ -239,7 +239,7 @@ def test_a_forced_failure_inside_identify_stops_it_with_memory_error():
 def test_the_command_line_says_memory_error_in_one_line(monkeypatch, tmp_path, capsys):
     from lpvid.cli import main
 
-    monkeypatch.setattr(lpvid.memory, "available_memory", lambda: (10**6, "a 1 MB test"))
+    monkeypatch.setattr(lpvid.fit.memory, "available_memory", lambda: (10**6, "a 1 MB test"))
     assert main(["demo", "--out", str(tmp_path / "o"), "--no-figures", "--quiet"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("lpvid demo: error: identify needs about")

@@ -15,8 +15,8 @@ import pytest
 
 import lpvid
 import lpvid._files
-import lpvid.figures
-import lpvid.report
+import lpvid.report.figures
+import lpvid.report.markdown
 import lpvid.testing
 from lpvid.cli import main
 
@@ -30,7 +30,7 @@ def result():
 @pytest.fixture(autouse=True)
 def quick(monkeypatch):
     """The report's stability section (a second of root finding and an LMI) left out."""
-    monkeypatch.setattr(lpvid.report, "_trust", lambda result: [])
+    monkeypatch.setattr(lpvid.report.markdown, "_trust", lambda result: [])
 
 
 def snapshot(folder):
@@ -49,7 +49,7 @@ def interrupt(*args, **kwargs):
 
 def interrupted_at(name):
     """``write_atomic`` of the report module, interrupted at the file ``name``."""
-    real = lpvid.report.write_atomic
+    real = lpvid.report.markdown.write_atomic
 
     def write(path, fill):
         if path.name == name:
@@ -64,23 +64,23 @@ def test_an_interrupted_report_leaves_no_folder(result, tmp_path, monkeypatch, w
     out = tmp_path / "report"
     if where == "write_atomic":
         # The last file (report.md) fails after the model files are written.
-        monkeypatch.setattr(lpvid.report, "write_atomic", interrupted_at("report.md"))
+        monkeypatch.setattr(lpvid.report.markdown, "write_atomic", interrupted_at("report.md"))
     else:
-        monkeypatch.setattr(lpvid.report, where, interrupt)
+        monkeypatch.setattr(lpvid.report.markdown, where, interrupt)
     with pytest.raises(KeyboardInterrupt):
-        lpvid.report.write_report(result, out, figures=False)
+        lpvid.report.markdown.write_report(result, out, figures=False)
     assert not out.exists()
     assert leftovers(tmp_path, "report") == []
 
 
 def test_an_interrupted_rewrite_leaves_the_old_report_untouched(result, tmp_path, monkeypatch):
     out = tmp_path / "report"
-    lpvid.report.write_report(result, out, title="first", figures=False)
+    lpvid.report.markdown.write_report(result, out, title="first", figures=False)
     before = snapshot(out)
     assert {str(p) for p in before} == {"report.md", "model.json", "model.mat", "result.json"}
-    monkeypatch.setattr(lpvid.report, "_markdown", interrupt)
+    monkeypatch.setattr(lpvid.report.markdown, "_markdown", interrupt)
     with pytest.raises(KeyboardInterrupt):
-        lpvid.report.write_report(result, out, title="second", figures=False)
+        lpvid.report.markdown.write_report(result, out, title="second", figures=False)
     assert snapshot(out) == before
     assert leftovers(tmp_path, "report") == []
 
@@ -88,11 +88,11 @@ def test_an_interrupted_rewrite_leaves_the_old_report_untouched(result, tmp_path
 @pytest.mark.parametrize("exchange", [True, False])
 def test_a_complete_rewrite_replaces_the_old_folder_whole(result, tmp_path, monkeypatch, exchange):
     out = tmp_path / "report"
-    lpvid.report.write_report(result, out, title="first", figures=False)
+    lpvid.report.markdown.write_report(result, out, title="first", figures=False)
     (out / "grid.json").write_text("{}")  # from an earlier lpvid select
     if not exchange:  # the two-rename path of systems without renameat2
         monkeypatch.setattr(lpvid._files, "_exchange", lambda a, b: False)
-    path = lpvid.report.write_report(result, out, title="second", figures=False)
+    path = lpvid.report.markdown.write_report(result, out, title="second", figures=False)
     assert path == out / "report.md"
     assert path.read_text().startswith("# second")
     assert not (out / "grid.json").exists()
@@ -105,7 +105,7 @@ def test_a_folder_with_other_files_is_not_replaced(result, tmp_path):
     out.mkdir()
     (out / "measurements.npz").write_bytes(b"precious")
     with pytest.raises(FileExistsError, match=r"measurements\.npz"):
-        lpvid.report.write_report(result, out, figures=False)
+        lpvid.report.markdown.write_report(result, out, figures=False)
     assert snapshot(out) == {Path("measurements.npz"): b"precious"}
     assert leftovers(tmp_path, "mine") == []
 
@@ -113,7 +113,7 @@ def test_a_folder_with_other_files_is_not_replaced(result, tmp_path):
 def test_an_interrupted_figure_leaves_no_folder(result, tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     out = tmp_path / "report"
-    real, drawn = lpvid.figures.draw, []
+    real, drawn = lpvid.report.figures.draw, []
 
     def second_fails(job, folder):
         if drawn:
@@ -121,9 +121,9 @@ def test_an_interrupted_figure_leaves_no_folder(result, tmp_path, monkeypatch):
         drawn.append(real(job, folder))
         return drawn[-1]
 
-    monkeypatch.setattr(lpvid.figures, "draw", second_fails)
+    monkeypatch.setattr(lpvid.report.figures, "draw", second_fails)
     with pytest.raises(KeyboardInterrupt):
-        lpvid.report.write_report(result, out)
+        lpvid.report.markdown.write_report(result, out)
     assert drawn and drawn[0].suffix == ".png"  # a figure was written before the interrupt
     assert not out.exists()
     assert leftovers(tmp_path, "report") == []
@@ -136,7 +136,7 @@ def test_ctrl_c_while_the_demo_writes_exits_130_and_keeps_the_old_report(
     monkeypatch.setattr(lpvid, "identify", lambda *args, **kwargs: result)
     assert main(["demo", "--out", str(out), "--no-figures", "--quiet"]) == 0
     before = snapshot(out)
-    monkeypatch.setattr(lpvid.report, "_markdown", interrupt)
+    monkeypatch.setattr(lpvid.report.markdown, "_markdown", interrupt)
     assert main(["demo", "--out", str(out), "--no-figures", "--quiet"]) == 130
     assert capsys.readouterr().err.strip().endswith("lpvid demo: interrupted")
     assert snapshot(out) == before
@@ -162,13 +162,13 @@ def test_select_report_is_written_whole(tmp_path, monkeypatch):
     val = lpvid.testing.noisy_data(true, [0.25, 0.75], f, rng, 0.01)
     sel = lpvid.select(data, [2], [1], validation=val)
     out = tmp_path / "sel"
-    real = lpvid.report.write_atomic
-    monkeypatch.setattr(lpvid.report, "write_atomic", interrupted_at("select.md"))
+    real = lpvid.report.markdown.write_atomic
+    monkeypatch.setattr(lpvid.report.markdown, "write_atomic", interrupted_at("select.md"))
     with pytest.raises(KeyboardInterrupt):
-        lpvid.report.write_select_report(sel, out, figures=False)
+        lpvid.report.markdown.write_select_report(sel, out, figures=False)
     assert not out.exists() and leftovers(tmp_path, "sel") == []
-    monkeypatch.setattr(lpvid.report, "write_atomic", real)
-    path = lpvid.report.write_select_report(sel, out, figures=False)
+    monkeypatch.setattr(lpvid.report.markdown, "write_atomic", real)
+    path = lpvid.report.markdown.write_select_report(sel, out, figures=False)
     assert path == out / "select.md" and path.exists() and (out / "report.md").exists()
 
 
@@ -193,11 +193,11 @@ def test_figures_still_drawing_finish_before_the_folder_is_removed(result, tmp_p
         started.wait(10)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(lpvid.figures, "draw", slow)
-    monkeypatch.setattr(lpvid.report, "_trust", interrupt_once_drawing)
+    monkeypatch.setattr(lpvid.report.figures, "draw", slow)
+    monkeypatch.setattr(lpvid.report.markdown, "_trust", interrupt_once_drawing)
     out = tmp_path / "report"
     with ThreadPoolExecutor(2) as pool, pytest.raises(KeyboardInterrupt):
-        lpvid.report.write_report(result, out, pool=pool)
+        lpvid.report.markdown.write_report(result, out, pool=pool)
     assert written  # a job was running when Ctrl-C came, and finished
     assert not out.exists()
     assert leftovers(tmp_path, "report") == []
@@ -206,5 +206,5 @@ def test_figures_still_drawing_finish_before_the_folder_is_removed(result, tmp_p
 def test_the_current_folder_is_never_replaced(result, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # empty: nothing else would stop it
     with pytest.raises(FileExistsError, match="current folder"):
-        lpvid.report.write_report(result, ".", figures=False)
+        lpvid.report.markdown.write_report(result, ".", figures=False)
     assert list(tmp_path.iterdir()) == []

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.pathfit import path_mode
+from lpvid.fit.timecost import check_time_data
+from lpvid.pipeline.path import path_mode
 from lpvid.testing import noisy_data, random_lpv
-from lpvid.timecost import check_time_data
 
 MAKERS = {"stage": lpvid.datasets.positioning_stage, "gantry": lpvid.datasets.gantry}
 
@@ -69,7 +69,7 @@ def test_the_choice_simplifies_and_keeps_interpolating(run, runs):
         return
     # Without validation data the path runs warm and the knee takes, for its
     # number of groups, the most regularised fit within the noise of the best.
-    slack = lpvid.judge.noise_slack(chosen.noise_floor)
+    slack = lpvid.fit.judge.noise_slack(chosen.noise_floor)
     same = [e for e in res.entries if e.n_groups == chosen.n_groups]
     best = min(e.vnls for e in same)
     assert chosen.vnls <= best + slack
@@ -145,7 +145,7 @@ def test_pinned_must_be_a_flag(rng):
 
 def test_the_report_says_which_fits_were_pinned(run, tmp_path):
     _, _, res, _ = run
-    report = lpvid.report.write_report(res, tmp_path, figures=False)
+    report = lpvid.report.markdown.write_report(res, tmp_path, figures=False)
     rows = json.loads((tmp_path / "result.json").read_text())["path"]
     assert [r["pinned"] for r in rows] == [e.pinned for e in res.entries]
     said = "(pinned): the fit kept its steps off" in report.read_text()

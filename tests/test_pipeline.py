@@ -230,7 +230,7 @@ def test_identify_with_two_scheduling_parameters():
 
 def test_report_without_figures(tmp_path, gantry_result):
     _, res = gantry_result
-    path = lpvid.report.write_report(res, tmp_path, figures=False)
+    path = lpvid.report.markdown.write_report(res, tmp_path, figures=False)
     text = path.read_text()
     assert "## Figures" not in text
     assert res.table() in text

@@ -7,8 +7,8 @@ import pytest
 
 import lpvid
 import lpvid.testing
-from lpvid.judge import identify_range
-from lpvid.settings import DEFAULT_GAMMAS, FORMS, ROUTES
+from lpvid.fit.judge import identify_range
+from lpvid.fit.settings import DEFAULT_GAMMAS, FORMS, ROUTES
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@
 
 Records and units (records.py), sigma from variance and coherence (sigma.py),
 one frequency axis for all records (lines.py) and the choice of a point's
-records by order or by labels (select.py). Values are checked against the
+records by order or by labels (pairing.py). Values are checked against the
 documented formulas computed here, axes against numpy, and every refusal's
 message in full.
 """
@@ -15,6 +15,7 @@ import pytest
 
 from lpvid.readers.lines import ATOL, RTOL, align_lines
 from lpvid.readers.manifest import ChannelSpec
+from lpvid.readers.pairing import select_records
 from lpvid.readers.records import (
     COHERENCE,
     FRF,
@@ -28,7 +29,6 @@ from lpvid.readers.records import (
     parse_direction,
     same_units,
 )
-from lpvid.readers.select import select_records
 from lpvid.readers.sigma import sigma_from_coherence, sigma_from_variance, sigma_relative
 from lpvid.readers.table import read_csv
 
@@ -431,7 +431,7 @@ def test_no_shared_line_bad_mode_and_lines_that_cannot_be_told_apart():
         align_lines([rec_on([1.0]), rec_on([1.0])], ["p0"], "common")
 
 
-# ------------------------------------------------------------------ select.py
+# ------------------------------------------------------------------ pairing.py
 F3 = [1.0, 2.0, 3.0]
 
 

@@ -15,9 +15,9 @@ from systems import (
 
 import lpvid
 from lpvid import initial
-from lpvid.frozen import frozen_stable
-from lpvid.schedule import between_points
-from lpvid.settings import FTOL
+from lpvid.data.schedule import between_points
+from lpvid.fit.settings import FTOL
+from lpvid.model.frozen import frozen_stable
 
 # ------------------------------------------------------------------ helpers
 DAMPED_FREQS = np.logspace(np.log10(2.0), np.log10(300.0), 150)
@@ -360,10 +360,10 @@ def test_the_race_of_the_starts_keeps_the_choice_of_full_refinement(hard):
     pick, _ = initial.choose(raced)
     want, _ = initial.choose(full)
     assert pick.refined and pick.stable
-    # The race ranks its rounds as choose does (lpvid.judge: within 2 % of the
+    # The race ranks its rounds as choose does (lpvid.fit.judge: within 2 % of the
     # best validation V_NLS the least scheduling dependence first), so the
     # pick is as simple as that of full refinement whatever the last bits.
-    assert pick.dependence <= (1 + lpvid.judge.DEPENDENCE_TIE) * want.dependence
+    assert pick.dependence <= (1 + lpvid.fit.judge.DEPENDENCE_TIE) * want.dependence
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= 1.02 * want.vnls
     # The pick refined the same way in both routes ends where it did.
@@ -395,9 +395,9 @@ def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard)
     # Issue 31: with numpy's OpenBLAS on its Haswell, Sandybridge or Nehalem
     # kernels the slow race once dropped a start 1.0001 x the best, when it
     # ranked its rounds by validation V_NLS alone; it ranks them as choose
-    # does now (lpvid.judge), and .ci/run runs this test on other numerics.
+    # does now (lpvid.fit.judge), and .ci/run runs this test on other numerics.
     assert pick.stable
-    assert pick.dependence <= (1 + lpvid.judge.DEPENDENCE_TIE) * want.dependence
+    assert pick.dependence <= (1 + lpvid.fit.judge.DEPENDENCE_TIE) * want.dependence
     assert pick.validation_vnls <= 1.02 * want.validation_vnls
     assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
 

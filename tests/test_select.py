@@ -16,7 +16,7 @@ import lpvid
 import lpvid.testing
 from lpvid.cli import main
 from lpvid.initial.subspace import singular_values
-from lpvid.selection import held_out_points
+from lpvid.selection.grid import held_out_points
 
 # A known system: two modes (order 4) whose frequencies are quadratic in p.
 QUADRATIC = [[12.0, 3.0, 2.0], [30.0, -4.0, 3.0]]
@@ -411,7 +411,7 @@ def test_cli_select_ctrl_c_exits_130_with_what_is_done(small, tmp_path):
     _, data, val = small
     data.save(tmp_path / "d.npz")
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "lpvid.cli", "select", str(tmp_path / "d.npz")]
+    cmd = [sys.executable, "-m", "lpvid.cli.commands", "select", str(tmp_path / "d.npz")]
     cmd += ["--orders", "1:6", "--degrees", "1", "--out", str(out), "--no-figures"]
     env = dict(os.environ, PYTHONWARNINGS="ignore")
     proc = subprocess.Popen(

@@ -5,8 +5,8 @@ import pytest
 
 import lpvid
 from lpvid.initial.orders import OrderHints
-from lpvid.selected import GridRow, SelectResult, basis_label, choose_pair, free_in_use
-from lpvid.selection import held_out_points
+from lpvid.selection.grid import held_out_points
+from lpvid.selection.result import GridRow, SelectResult, basis_label, choose_pair, free_in_use
 
 
 def _row(order, degree, *, val=None, n_free=None, vnls=None, floor=None, ok=True):

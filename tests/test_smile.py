@@ -17,9 +17,9 @@ from systems import (
 )
 
 import lpvid
+from lpvid.data.schedule import propagation_order
 from lpvid.initial.coherent import CoherenceError
-from lpvid.initial.smile import FORMS
-from lpvid.schedule import propagation_order
+from lpvid.initial.interpolation import FORMS
 from lpvid.testing import random_lpv
 
 GANTRY_BASIS = lpvid.Polynomial(4, domain=(24.0, 48.0))

@@ -9,11 +9,11 @@ import pytest
 
 import lpvid
 from lpvid import _core
-from lpvid.frozen import frozen_A, stability_margin
+from lpvid.model.frozen import frozen_A, stability_margin
+from lpvid.stable.lyapunov import quadratic_stability
+from lpvid.stable.ranges import polynomial_A
+from lpvid.stable.scan import margins
 from lpvid.testing import random_lpv
-from lpvid.trust.lyapunov import quadratic_stability
-from lpvid.trust.ranges import polynomial_A
-from lpvid.trust.stability import margins
 
 
 def _scalar(coefs, Ts=1.0, domain=(0.0, 1.0)):
@@ -47,7 +47,7 @@ def test_margin_rule_is_the_cores(rng, discrete):
             lam *= 0.6
         py = float(stability_margin(lam, 1.0 if discrete else None))
         assert py == pytest.approx(_core.stability_margin(lam, discrete), rel=1e-14, abs=1e-15)
-        stable = bool(np.all(lpvid.frozen.stable_poles(lam, 1.0 if discrete else None)))
+        stable = bool(np.all(lpvid.model.frozen.stable_poles(lam, 1.0 if discrete else None)))
         assert (py > 0) == stable
 
 
@@ -199,11 +199,11 @@ def test_summaries_in_words():
     first = rep.summary().splitlines()[0]
     assert first == (
         "frozen models NOT stable over p in [0, 1] x [0, 2]: smallest margin -1 (smallest "
-        f"-Re(pole)/|pole|) at p = {lpvid.trust.stability.format_p(rep.worst_p)} (grid with "
+        f"-Re(pole)/|pole|) at p = {lpvid.stable.scan.format_p(rep.worst_p)} (grid with "
         f"refinement, {rep.n_checked} frozen models)"
     )
-    assert lpvid.trust.stability.format_p([0.25, 2.0]) == "(0.25, 2)"
-    assert lpvid.trust.stability.format_p(np.float64(0.125)) == "0.125"
+    assert lpvid.stable.scan.format_p([0.25, 2.0]) == "(0.25, 2)"
+    assert lpvid.stable.scan.format_p(np.float64(0.125)) == "0.125"
     # One frozen model: an LTI model.
     lti = lpvid.LpvModel([[[0.5]]], [[[1.0]]], [[[1.0]]], Ts=1.0)
     assert lpvid.stability(lti, quadratic=False).summary().splitlines()[0] == (
@@ -218,7 +218,7 @@ def test_an_indefinite_gram_matrix_costs_the_certificate(monkeypatch):
     # Q0 - 0.5 I keeps the identity exact, but Q0 is then indefinite: the certified mu must
     # pay for it and stay a lower bound of F, which P alone decides.
     clarabel = pytest.importorskip("clarabel")
-    from lpvid.trust import lyapunov
+    from lpvid.stable import lyapunov
 
     honest = clarabel.DefaultSolver
     A = np.array([[[0.6, 0.3], [-0.3, 0.6]]])
@@ -272,7 +272,7 @@ def test_bad_ranges_are_named():
 
 
 def test_range_checks_at_the_domain_and_an_lti_report():
-    from lpvid.trust.ranges import check_range, polynomial_A
+    from lpvid.stable.ranges import check_range, polynomial_A
 
     m = _scalar([0.5, 0.45], domain=(2.0, 4.0))
     # A relative slack of 1e-9 of the domain's width (2e-9 here), on both sides.
@@ -320,7 +320,7 @@ def test_the_grid_refines_a_window_next_to_an_end(monkeypatch, end):
     # As above, the window 3e-4 from an end of [0, 3], inside the last interval of the grid:
     # the sampled margin is smallest at the end itself, and the search between the end
     # and its neighbour finds the window. n_checked counts every frozen model evaluated.
-    from lpvid.trust import stability as module
+    from lpvid.stable import scan as module
 
     p0 = end + (3e-4 if end == 0.0 else -3e-4)
 
@@ -371,7 +371,7 @@ def test_two_parameters_refine_between_the_grid_points(monkeypatch):
     # Continuous time, a pair sigma(s) +- 1j with sigma = -0.1 - 300 |s - s0|^2: the least
     # damped place s0 = (0.123, -0.377) lies between the points of the grid (spacing 0.047);
     # the margin there is 0.1 / sqrt(1.01), 0.3 above it at the nearest grid point.
-    from lpvid.trust import stability as module
+    from lpvid.stable import scan as module
 
     c, (u, v) = 300.0, (0.123, -0.377)
     eye, rot = np.eye(2), np.array([[0.0, 1.0], [-1.0, 0.0]])
@@ -399,7 +399,7 @@ def test_two_parameters_refine_between_the_grid_points(monkeypatch):
 
 
 def test_box_grid():
-    from lpvid.trust.ranges import box_grid
+    from lpvid.stable.ranges import box_grid
 
     pts = box_grid([(0.0, 1.0), (-2.0, 2.0)], 2001)  # floor(sqrt(2001)) = 44 per axis
     assert pts.shape == (44 * 44, 2)
@@ -472,7 +472,7 @@ def test_the_lmi_reaches_the_known_optimum(scale, discrete, best):
     # A(t) = s(t) R (discrete, R a rotation) or s(t) I + 3 J (continuous, J skew): with
     # I <= P <= kappa I the best eps is kappa (1 - max |s|), or 2 kappa min(-s), at P = kappa I.
     # The representation is exact: the solver must reach it, not only a feasible point.
-    from lpvid.trust.lyapunov import KAPPA
+    from lpvid.stable.lyapunov import KAPPA
 
     R = np.array([[np.cos(0.7), -np.sin(0.7)], [np.sin(0.7), np.cos(0.7)]])
     J = np.array([[0.0, 1.0], [-1.0, 0.0]])

@@ -1,4 +1,4 @@
-"""The parts of lpvid.trust.stability against analytic answers.
+"""The parts of lpvid.stable.scan against analytic answers.
 
 The crossing test is checked on A(t) = T blockdiag(lambda_k(t)) T^-1 whose eigenvalue
 functions are known polynomials, so the exact crossings are the real roots in [-1, 1]
@@ -15,8 +15,8 @@ import pytest
 from numpy.polynomial import polynomial as P
 
 import lpvid
-from lpvid.trust import stability as module
-from lpvid.trust.stability import (
+from lpvid.stable import scan as module
+from lpvid.stable.scan import (
     _crossings,
     _fmt_range,
     _guardian,

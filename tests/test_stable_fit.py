@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.trust.enforce import STABLE_TOL, stabilised
+from lpvid.stable.enforce import STABLE_TOL, stabilised
 
 BASIS = lpvid.Polynomial(2, domain=(0.0, 1.0))
 P = np.array([0.0, 1 / 3, 2 / 3, 1.0])
@@ -42,14 +42,14 @@ def _start(a0=0.9):
 
 def _max_pole(model):
     p = np.linspace(0.0, 1.0, 100_001)
-    return np.max(np.abs(lpvid.frozen.frozen_A(model, p)[:, 0, 0]))
+    return np.max(np.abs(lpvid.model.frozen.frozen_A(model, p)[:, 0, 0]))
 
 
 def test_fit_nls_goes_unstable_between_the_points_unless_told(peaked):
     free = lpvid.fit_nls(_start(), peaked, FIXED)
     kept = lpvid.fit_nls(_start(), peaked, FIXED, stable=True)
     # Unconstrained: stable at the points, unstable between the middle two.
-    assert lpvid.frozen.frozen_stable(free.model, P)
+    assert lpvid.model.frozen.frozen_stable(free.model, P)
     rep = lpvid.stability(free.model, quadratic=False)
     assert not rep.stable and 1 / 3 < rep.worst_p < 2 / 3
     assert _max_pole(free.model) > 1.0
@@ -165,7 +165,7 @@ def test_identify_keeps_a_refit_only_where_it_validates_better(peaked):
         )
         e, r = res.entry, res.refit_entry
         assert res.refit is not None and r is not None
-        better = r.validation_vnls < (1 - lpvid.trust.refit.REFIT_MARGIN) * e.validation_vnls
+        better = r.validation_vnls < (1 - lpvid.trust.support.REFIT_MARGIN) * e.validation_vnls
         assert res.refitted == better
         seen[better] += 1
         assert res.final.validation_vnls <= e.validation_vnls
@@ -187,7 +187,7 @@ def _ct_window():
     a(s) = 1e-8 - (s - s0)^2 (s = 2p - 1) is positive for |p - p0| < 5e-5 only, p0 midway
     between two of the core's check points (a uniform grid of 2049 points on [0, 1]).
     """
-    from lpvid.trust.enforce import CHECK_POINTS
+    from lpvid.stable.enforce import CHECK_POINTS
 
     p0 = (1000.5) / (CHECK_POINTS - 1)
     s0 = 2 * p0 - 1
@@ -202,10 +202,12 @@ def _ct_window():
 def test_stable_fits_recheck_the_continuum_between_the_check_points():
     # A stand-in for the core's fit: it returns the window model whenever the check points
     # it is given call it stable (as the core would), else it stays at the start.
-    from lpvid.trust.enforce import run_stable
+    from lpvid.stable.enforce import run_stable
 
     start, bad, p0 = _ct_window()
-    assert lpvid.frozen.stability_margin(lpvid.frozen.frozen_poles(bad, [p0]), None)[0] < 0
+    assert (
+        lpvid.model.frozen.stability_margin(lpvid.model.frozen.frozen_poles(bad, [p0]), None)[0] < 0
+    )
     seen = []
 
     def fit(points):
@@ -291,8 +293,8 @@ def test_stabilised_on_its_range_only_and_to_the_margin_asked():
 def test_judged_refit_without_validation_and_the_report_lines():
     from types import SimpleNamespace
 
-    from lpvid.trust.refit import judged_refit
     from lpvid.trust.steps import refit_line, trust_lines
+    from lpvid.trust.support import judged_refit
 
     # B(1) = 1e-7 B(0) (relative 1e-7: dropped at the default 1e-6), A(1) = 0.5 A(0) on
     # [0, 1] but 2 over p_range (0, 4) of a domain-free basis: kept.
@@ -333,7 +335,7 @@ def test_judged_refit_without_validation_and_the_report_lines():
 def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
     # Against an independent run of the same steps: refit on the support to convergence, the
     # validation V_NLS before and after, kept only beyond REFIT_MARGIN.
-    from lpvid.trust.refit import REFIT_MARGIN, dropped_mask, judged_refit
+    from lpvid.trust.support import REFIT_MARGIN, dropped_mask, judged_refit
 
     model = lpvid.fit_l21(_start(), peaked, 1e-3, fixed=FIXED).model
     val = lpvid.FrfData(P[1:3], peaked.freqs_hz, peaked.G[1:3], sigma=peaked.sigma[1:3], Ts=1.0)
@@ -377,7 +379,7 @@ def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
 def test_refit_holds_the_groups_dropped_over_its_range_at_zero(peaked):
     # A(1) is 0.022 of A(0) over [0, 1] and 0.089 over [0, 4] (a domain-free basis); A(2) is
     # 1e-9 of it, small but not zero: the refit starts from zero there and holds it.
-    from lpvid.trust.refit import dropped_mask, judged_refit
+    from lpvid.trust.support import dropped_mask, judged_refit
 
     one = np.zeros((3, 1, 1))
     one[0] = 1.0

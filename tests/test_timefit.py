@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.timecost import TimeCost, build_time_problem, check_time_data
+from lpvid.fit.timecost import TimeCost, build_time_problem, check_time_data
 
 
 def two_parameter_model(rng, Ts):
@@ -408,7 +408,7 @@ def test_frf_data_and_time_records_together():
     G = true.frf(freqs, p)
     data = lpvid.FrfData(p, freqs, G, sigma=0.01, Ts=1.0)
     fast, fresh = record(true, 5, True, T=1500), record(true, 6, True, T=1500)
-    frf_problem = lpvid.cost.build_problem(moved, data)
+    frf_problem = lpvid.fit.cost.build_problem(moved, data)
     time_problem = build_time_problem(moved, fast)
     both = lpvid._core.SumProblem(frf_problem, time_problem)
     assert both.n_residuals == data.n_residuals + fast.n_residuals

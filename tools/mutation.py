@@ -3,8 +3,8 @@
 
 Python (mutmut 3.8.1, ``pip install mutmut==3.8.1`` into the venv that has lpvid built)::
 
-    python tools/mutation.py py trust/stability.py              # the module's fast tests
-    python tools/mutation.py py selected.py --tests tests/test_select.py  # tests you choose
+    python tools/mutation.py py stable/scan.py                   # the module's fast tests
+    python tools/mutation.py py selection/result.py --tests tests/test_select.py  # tests you choose
     python tools/mutation.py py trust/                          # every module of a folder
 
 Rust (cargo-mutants, ``cargo install cargo-mutants``)::
@@ -41,24 +41,24 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The fast test files that exercise each Python module (relative to python/lpvid).
 PY_TESTS = {
-    "trust/covariance.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
-    "trust/design.py": ["tests/test_nextpoints.py"],
-    "trust/nextpoints.py": ["tests/test_nextpoints.py"],
-    "trust/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
-    "trust/lyapunov.py": ["tests/test_stability.py", "tests/test_lyapunov.py"],
-    "trust/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
-    "trust/refit.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
-    "trust/stability.py": [
+    "trust/uncertainty.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
+    "experiment/design.py": ["tests/test_nextpoints.py"],
+    "experiment/nextpoints.py": ["tests/test_nextpoints.py"],
+    "stable/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
+    "stable/lyapunov.py": ["tests/test_stability.py", "tests/test_lyapunov.py"],
+    "stable/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
+    "trust/support.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
+    "stable/scan.py": [
         "tests/test_stability.py",
         "tests/test_stable_fit.py",
         "tests/test_stability_parts.py",
     ],
     "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
-    "selection.py": ["tests/test_select_rules.py", "tests/test_select.py"],
-    "selected.py": ["tests/test_select_rules.py", "tests/test_select.py"],
-    "timefit.py": ["tests/test_timefit.py"],
-    "timecost.py": ["tests/test_timefit.py", "tests/test_timedata.py"],
+    "selection/grid.py": ["tests/test_select_rules.py", "tests/test_select.py"],
+    "selection/result.py": ["tests/test_select_rules.py", "tests/test_select.py"],
+    "fit/timefit.py": ["tests/test_timefit.py"],
+    "fit/timecost.py": ["tests/test_timefit.py", "tests/test_timedata.py"],
     "readers/": [
         "tests/test_readers.py",
         "tests/test_reader_errors.py",
@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(dest="lang", required=True)
     p = sub.add_parser("py", help="mutmut on Python modules of lpvid")
-    p.add_argument("modules", nargs="+", help="e.g. trust/stability.py or readers/")
+    p.add_argument("modules", nargs="+", help="e.g. stable/scan.py or readers/")
     p.add_argument("--tests", nargs="+", help="test files (default: the module's fast ones)")
     p.add_argument("--stage", help="staging directory (kept; default: a new temporary one)")
     p.add_argument("--python", help="the venv's python (default .venv/bin/python)")

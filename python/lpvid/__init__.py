@@ -11,15 +11,28 @@ Pipeleers and Swevers, 2018).
 from lpvid import _cpu  # noqa: F401
 
 # isort: split
-from lpvid import datasets, handoff, initial, judge, plots, readers, report, trust
+from lpvid import datasets, initial, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
-from lpvid.basis import Basis, CustomBasis, Legendre, Polynomial
-from lpvid.cost import residual, vnls
-from lpvid.data import FrfData
+from lpvid.data.basis import Basis, CustomBasis, Legendre, Polynomial
+from lpvid.data.frf import FrfData
+from lpvid.data.measure import Multisine, estimate_frf, multisine
+from lpvid.data.timedata import TimeData
 from lpvid.errors import ConvergenceWarning, SingularModelError
-from lpvid.fit import fit_l21, fit_nls, l21_path
-from lpvid.groups import GroupNorms
-from lpvid.identified import IdentifyResult
+from lpvid.experiment.nextpoints import Suggestion, next_points, suggest_points
+from lpvid.fit import judge
+from lpvid.fit.cost import residual, vnls
+from lpvid.fit.fits import fit_l21, fit_nls, l21_path
+from lpvid.fit.memory import available_memory, fit_memory
+from lpvid.fit.results import FitResult, L21Result, PathResult
+from lpvid.fit.settings import (
+    IdentifySettings,
+    L21Settings,
+    LmSettings,
+    PathSettings,
+    StartSettings,
+)
+from lpvid.fit.timecost import TimeCost, initial_states, time_residual, time_vnls
+from lpvid.fit.timefit import fit_time
 from lpvid.initial import (
     Consistency,
     LocalModels,
@@ -30,26 +43,21 @@ from lpvid.initial import (
     initial_candidates,
     smile_candidates,
 )
+from lpvid.initial.interpolation import smile
 from lpvid.initial.orders import OrderHints, order_hints
-from lpvid.initial.smile import smile
-from lpvid.layout import fixed_mask, free_mask
-from lpvid.measure import Multisine, estimate_frf, multisine
-from lpvid.memory import available_memory, fit_memory
-from lpvid.model import LpvModel
-from lpvid.pipeline import identify
-from lpvid.problem import Problem
-from lpvid.results import FitResult, L21Result, PathResult
-from lpvid.selected import GridRow, SelectResult
-from lpvid.selection import select
-from lpvid.settings import IdentifySettings, L21Settings, LmSettings, PathSettings, StartSettings
-from lpvid.timecost import TimeCost, initial_states, time_residual, time_vnls
-from lpvid.timedata import TimeData
-from lpvid.timefit import fit_time
+from lpvid.model import handoff
+from lpvid.model.groups import GroupNorms
+from lpvid.model.layout import fixed_mask, free_mask
+from lpvid.model.lpv import LpvModel
+from lpvid.pipeline.problem import Problem
+from lpvid.pipeline.result import IdentifyResult
+from lpvid.pipeline.run import identify
+from lpvid.selection.grid import select
+from lpvid.selection.result import GridRow, SelectResult
+from lpvid.stable.scan import stability
 from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
-from lpvid.trust.covariance import covariance
-from lpvid.trust.nextpoints import Suggestion, next_points, suggest_points
-from lpvid.trust.refit import refit
-from lpvid.trust.stability import stability
+from lpvid.trust.support import refit
+from lpvid.trust.uncertainty import covariance
 
 __all__ = [
     "Basis",

@@ -39,7 +39,7 @@ catching the built-in (``except ValueError``) catches it too::
 - ``logging.getLogger("lpvid")`` receives the progress of
   :func:`lpvid.identify` (INFO) and of every fit step (DEBUG).
 
-The command line's misuse error (``lpvid._cliargs.Misuse``) is not here: it
+The command line's misuse error (``lpvid.cli._common.Misuse``) is not here: it
 is private to the ``lpvid`` commands, which turn it into a one-line message
 and exit code 2, and it never reaches a caller of the library.
 """

@@ -22,9 +22,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
-from lpvid.basis import Polynomial
-from lpvid.data import FrfData
-from lpvid.model import LpvModel
+from lpvid.data.basis import Polynomial
+from lpvid.data.frf import FrfData
+from lpvid.model.lpv import LpvModel
 
 __all__ = [
     "random_lpv",

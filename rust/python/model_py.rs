@@ -1,5 +1,5 @@
 //! The model as the bindings see it: one [`PyModelView`] (shape, parameters
-//! and basis values), built once by Python (`lpvid._view.model_view`) and
+//! and basis values), built once by Python (`lpvid.model._view.model_view`) and
 //! checked at construction, and the shape alone ([`ShapeArg`]) for the
 //! bindings that take no basis values (time records, memory estimates).
 

@@ -1,7 +1,7 @@
 //! What the fitting routines return to Python: one typed, read-only object
 //! per kind ([`PyFitOutcome`] for `fit_nls` and `fit_l21`,
 //! [`PyPathOutcome`] for `l21_path`, [`PyConeStep`] for `cone_step`), read
-//! by `python/lpvid/results.py`. The rows of a fit's history stay dicts:
+//! by `python/lpvid/fit/results.py`. The rows of a fit's history stay dicts:
 //! they are what the progress callback receives and what
 //! `lpvid.FitResult.history` holds.
 

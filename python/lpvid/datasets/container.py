@@ -9,8 +9,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array
-from lpvid.basis import Basis
-from lpvid.data import FrfData, z_points
+from lpvid.data.basis import Basis
+from lpvid.data.frf import FrfData, z_points
 from lpvid.datasets.synthesis import Matrices, _frf, _sampled, _scalar
 
 __all__ = ["Dataset"]

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int, sample_time
-from lpvid.basis import Polynomial
+from lpvid.data.basis import Polynomial
 from lpvid.datasets.container import Dataset, _ranges
 from lpvid.datasets.synthesis import (
     Matrices,

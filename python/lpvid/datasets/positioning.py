@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from lpvid._checks import positive_int, sample_time
-from lpvid.basis import Polynomial
+from lpvid.data.basis import Polynomial
 from lpvid.datasets.container import Dataset, _ranges
 from lpvid.datasets.synthesis import Matrices, _generators, _measure, _snr
 

@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
-from lpvid.data import FrfData, z_points
-from lpvid.frozen import lti_frf
+from lpvid.data.frf import FrfData, z_points
+from lpvid.model.frozen import lti_frf
 
 Matrices = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 

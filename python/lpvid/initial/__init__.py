@@ -14,7 +14,7 @@ before it):
   best-determined point;
 - :mod:`lpvid.initial.local`: one LTI model per point
   (:func:`lpvid.identify_lti`);
-- :mod:`lpvid.initial.coherent` and :mod:`lpvid.initial.smile`: coherent
+- :mod:`lpvid.initial.coherent` and :mod:`lpvid.initial.interpolation`: coherent
   state coordinates and the SMILE interpolation (:func:`lpvid.smile`);
 - :mod:`lpvid.initial.globalstart`: a constant model fitted to all points,
   then freed (:func:`lpvid.global_start`);
@@ -25,7 +25,7 @@ before it):
   and the choice of a start (:func:`lpvid.initial.choose`).
 
 This package re-exports the names of its modules that are not themselves
-module names, so that ``lpvid.initial.smile`` stays the module.
+module names, so that ``lpvid.initial.interpolation`` stays the module.
 """
 
 from lpvid.initial.candidates import ROUTES, Candidate, initial_candidates
@@ -34,11 +34,11 @@ from lpvid.initial.coherent import CoherenceError
 from lpvid.initial.continuation import best_determined, continuation_order, continue_local
 from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.globalstart import constant_start, free_groups, global_start
+from lpvid.initial.interpolation import FORMS, smile_candidates
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels, is_stable, lti_models
 from lpvid.initial.orders import OrderHints, order_hints
 from lpvid.initial.poles import pole_coordinates, pole_uncertainty
-from lpvid.initial.smile import FORMS, smile_candidates
 from lpvid.initial.subspace import fd_subspace
 
 __all__ = [

@@ -1,6 +1,6 @@
 """Initial LPV models by every route, each refined by fit_nls: the candidates for a start.
 
-SMILE (:mod:`lpvid.initial.smile`) trusts every local model. When modes are
+SMILE (:mod:`lpvid.initial.interpolation`) trusts every local model. When modes are
 heavily damped or close and the FRFs carry noise, a local model can fit its
 own data at the noise floor and still have another pole structure than its
 neighbours. The routes here are SMILE from the plain local models, SMILE
@@ -19,10 +19,13 @@ from typing import Any
 
 from lpvid._checks import positive_float, positive_int
 from lpvid._threads import single_blas
-from lpvid.basis import Basis
-from lpvid.cost import vnls_value as vnls
-from lpvid.data import FrfData
-from lpvid.frozen import frozen_stable
+from lpvid.data.basis import Basis
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import between_points
+from lpvid.fit.cost import vnls_value as vnls
+from lpvid.fit.judge import dependence
+from lpvid.fit.results import FitResult
+from lpvid.fit.settings import FTOL, ROUTES
 from lpvid.initial.continuation import best_determined, continue_local
 from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.globalstart import (
@@ -31,16 +34,13 @@ from lpvid.initial.globalstart import (
     finish_global,
     global_runner,
 )
+from lpvid.initial.interpolation import smile_candidates
 from lpvid.initial.local import check_local_order, local_models
 from lpvid.initial.localmodels import LocalModels
 from lpvid.initial.race import Runner, Stage, race, run_out
-from lpvid.initial.smile import smile_candidates
-from lpvid.judge import dependence
-from lpvid.layout import fixed_mask, strictly_proper
-from lpvid.model import LpvModel
-from lpvid.results import FitResult
-from lpvid.schedule import between_points
-from lpvid.settings import FTOL, ROUTES
+from lpvid.model.frozen import frozen_stable
+from lpvid.model.layout import fixed_mask, strictly_proper
+from lpvid.model.lpv import LpvModel
 
 __all__ = ["ROUTES", "Candidate", "candidates_of", "initial_candidates"]
 
@@ -76,13 +76,13 @@ class Candidate:
     stable : bool
         Whether the frozen models are stable at the identification points
         and at 7 values between every two neighbouring points
-        (:func:`lpvid.schedule.between_points`,
-        :func:`lpvid.frozen.frozen_stable`). An LPV model that fits the
+        (:func:`lpvid.data.schedule.between_points`,
+        :func:`lpvid.model.frozen.frozen_stable`). An LPV model that fits the
         points but has unstable frozen models between them is usually
         interpolating mismatched local models.
     dependence : float
         The refined model's scheduling dependence (the sum of its groups'
-        relative magnitudes, :meth:`lpvid.groups.GroupNorms.dependence`):
+        relative magnitudes, :meth:`lpvid.model.groups.GroupNorms.dependence`):
         among candidates that fit equally well, the smaller the simpler.
     note : str
         What was done, in words.
@@ -217,7 +217,8 @@ def initial_candidates(
     routes : sequence of str
         Which routes to take, among ``"plain"``, ``"continuation"``, ``"global"``.
     forms : sequence of str, optional
-        Coherent forms for the SMILE routes (default all of :data:`lpvid.initial.smile.FORMS`).
+        Coherent forms for the SMILE routes (default all of
+        :data:`lpvid.initial.interpolation.FORMS`).
     local : LocalModels, optional
         Plain local models, when already identified.
     diagnosis : Consistency, optional
@@ -227,7 +228,7 @@ def initial_candidates(
         Most Levenberg-Marquardt steps per fit.
     ftol : float
         A fit ends when a step lowers V_NLS by less than ``ftol`` times it
-        (default :data:`lpvid.settings.FTOL`: the rest is a slide along
+        (default :data:`lpvid.fit.settings.FTOL`: the rest is a slide along
         directions the data hardly see; see :func:`lpvid.fit_nls`).
     halving : bool
         Race the starts (:func:`lpvid.initial.race.race`): every start gets

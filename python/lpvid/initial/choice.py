@@ -7,8 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from lpvid._checks import positive_float
+from lpvid.fit.judge import VALIDATION_TIE, noise_slack, simplest, tied
 from lpvid.initial.candidates import Candidate
-from lpvid.judge import VALIDATION_TIE, noise_slack, simplest, tied
 
 __all__ = ["choose"]
 
@@ -29,10 +29,10 @@ def choose(
     lowest validation V_NLS; candidates within ``tolerance`` of it count
     as equal and the simplest of them wins: the least scheduling dependence
     (:attr:`Candidate.dependence`, the sum of the relative group
-    magnitudes), then the lowest validation V_NLS (:func:`lpvid.judge.simplest`).
+    magnitudes), then the lowest validation V_NLS (:func:`lpvid.fit.judge.simplest`).
 
     Without: the lowest identification V_NLS, where candidates within the
-    noise of the best count as equal (:func:`lpvid.judge.tied`: two
+    noise of the best count as equal (:func:`lpvid.fit.judge.tied`: two
     standard deviations of V_NLS, ``2 sqrt(M)``, M the number of
     residuals) and the simplest wins as above. Candidates that fit the
     points equally well can differ wildly between them (with about as many

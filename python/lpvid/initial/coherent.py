@@ -37,9 +37,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._graphs import assignment
+from lpvid.data.schedule import propagation_order
 from lpvid.errors import CoherenceError
-from lpvid.frozen import stable_poles
-from lpvid.schedule import propagation_order
+from lpvid.model.frozen import stable_poles
 
 __all__ = [
     "CoherenceError",

@@ -9,14 +9,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
 from lpvid._threads import single_blas
-from lpvid.data import FrfData
-from lpvid.fit import fit_nls, raise_if_interrupted
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import unit_scaled
+from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.initial.coherent import propagation_order
 from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.localmodels import LocalModels
 from lpvid.initial.poles import pole_distance, pole_uncertainty
-from lpvid.model import LpvModel
-from lpvid.schedule import unit_scaled
+from lpvid.model.lpv import LpvModel
 
 __all__ = ["best_determined", "continuation_order", "continue_local"]
 
@@ -73,7 +73,7 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
     Along the minimum spanning tree of the points (scaled scheduling space),
     breadth first from ``root``: in one dimension outwards along the sorted
     points, for several parameters along a nearest-neighbour tree
-    (:func:`lpvid.schedule.propagation_order`).
+    (:func:`lpvid.data.schedule.propagation_order`).
 
     Parameters
     ----------

@@ -13,9 +13,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int
+from lpvid.data.schedule import unit_scaled
 from lpvid.initial.localmodels import Consistency, local_p, lti_models
 from lpvid.initial.poles import describe_pole, is_real, match_poles, pole_coordinates
-from lpvid.schedule import unit_scaled
 
 __all__ = ["Consistency", "consistency"]
 

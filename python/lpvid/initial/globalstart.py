@@ -11,19 +11,19 @@ from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
 from lpvid._threads import single_blas
-from lpvid.basis import Basis
-from lpvid.cost import check_compatible
-from lpvid.data import FrfData
-from lpvid.fit import fit_nls, raise_if_interrupted
+from lpvid.data.basis import Basis
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import model_range
+from lpvid.fit.cost import check_compatible
+from lpvid.fit.fits import fit_nls, raise_if_interrupted
+from lpvid.fit.results import FitResult
+from lpvid.fit.settings import FTOL
 from lpvid.initial.continuation import best_determined
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
 from lpvid.initial.race import Runner, Stage
-from lpvid.layout import fixed_mask, strictly_proper
-from lpvid.model import LpvModel
-from lpvid.results import FitResult
-from lpvid.schedule import model_range
-from lpvid.settings import FTOL
+from lpvid.model.layout import fixed_mask, strictly_proper
+from lpvid.model.lpv import LpvModel
 
 __all__ = [
     "STAGES",
@@ -103,7 +103,7 @@ def global_start(
         Most Levenberg-Marquardt steps per stage.
     ftol : float
         A stage ends when a step lowers V_NLS by less than ``ftol`` times it
-        (default :data:`lpvid.settings.FTOL`; see :func:`lpvid.fit_nls`).
+        (default :data:`lpvid.fit.settings.FTOL`; see :func:`lpvid.fit_nls`).
 
     Returns
     -------

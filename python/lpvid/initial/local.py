@@ -10,16 +10,16 @@ import numpy as np
 from lpvid._checks import positive_int
 from lpvid._spread import Spread
 from lpvid._threads import single_blas
-from lpvid.basis import Polynomial
-from lpvid.cost import vnls_value as vnls
-from lpvid.data import FrfData
-from lpvid.fit import fit_nls, raise_if_interrupted
+from lpvid.data.basis import Polynomial
+from lpvid.data.frf import FrfData
+from lpvid.fit.cost import vnls_value as vnls
+from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.initial.coherent import balance
 from lpvid.initial.continuation import continue_local
 from lpvid.initial.diagnosis import consistency
 from lpvid.initial.localmodels import LocalModels, is_stable
 from lpvid.initial.subspace import fd_subspace, max_order
-from lpvid.model import LpvModel
+from lpvid.model.lpv import LpvModel
 
 __all__ = ["check_local_order", "identify_lti", "local_models"]
 

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array, same_sample_time
-from lpvid.frozen import stable_poles
-from lpvid.model import LpvModel
+from lpvid.model.frozen import stable_poles
+from lpvid.model.lpv import LpvModel
 
 __all__ = ["Consistency", "LocalModels", "is_stable", "local_p", "lti_models"]
 

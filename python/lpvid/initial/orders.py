@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
-from lpvid.data import FrfData
+from lpvid.data.frf import FrfData
 from lpvid.initial.subspace import max_order, singular_values
 
 __all__ = ["OrderHints", "order_hints"]

@@ -9,9 +9,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._graphs import assignment
-from lpvid.data import FrfData
-from lpvid.model import LpvModel
-from lpvid.trust.covariance import covariance
+from lpvid.data.frf import FrfData
+from lpvid.model.lpv import LpvModel
+from lpvid.trust.uncertainty import covariance
 
 __all__ = [
     "describe_pole",

@@ -23,15 +23,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._spread import Spread
-from lpvid.cost import vnls_value as vnls
-from lpvid.data import FrfData
-from lpvid.fit import fit_nls, raise_if_interrupted
-from lpvid.frozen import frozen_stable
-from lpvid.judge import VALIDATION_TIE, dependence, tied
-from lpvid.model import LpvModel
-from lpvid.results import FitResult
-from lpvid.schedule import between_points
-from lpvid.settings import FTOL
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import between_points
+from lpvid.fit.cost import vnls_value as vnls
+from lpvid.fit.fits import fit_nls, raise_if_interrupted
+from lpvid.fit.judge import VALIDATION_TIE, dependence, tied
+from lpvid.fit.results import FitResult
+from lpvid.fit.settings import FTOL
+from lpvid.model.frozen import frozen_stable
+from lpvid.model.lpv import LpvModel
 
 __all__ = ["HOPELESS", "ROUNDS", "Runner", "Stage", "race", "run_out"]
 
@@ -97,7 +97,7 @@ class Runner:
         Most steps per stage.
     ftol : float
         A stage ends when a step lowers V_NLS by less than ``ftol`` times
-        it (:data:`lpvid.settings.FTOL`; see :func:`lpvid.fit_nls`).
+        it (:data:`lpvid.fit.settings.FTOL`; see :func:`lpvid.fit_nls`).
     start : LpvModel or None
         The model the last stage started from (known once it starts).
     fit : FitResult or None
@@ -184,10 +184,10 @@ def _rank(
     """Sort keys: unstable between the points last, then the (validation) V_NLS.
 
     Runners whose V_NLS ties with the best stable one's come first, the one
-    with the least scheduling dependence (:func:`lpvid.judge.dependence`)
+    with the least scheduling dependence (:func:`lpvid.fit.judge.dependence`)
     ahead: as :func:`lpvid.initial.choose` ranks them, within the noise of
-    the identification V_NLS, or within :data:`lpvid.judge.VALIDATION_TIE`
-    of the best validation V_NLS (:func:`lpvid.judge.tied`).
+    the identification V_NLS, or within :data:`lpvid.fit.judge.VALIDATION_TIE`
+    of the best validation V_NLS (:func:`lpvid.fit.judge.tied`).
     """
     between = between_points(data.p)
     judge = validation if validation is not None else data

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid.model import LpvModel
+from lpvid.model.lpv import LpvModel
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -9,8 +9,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from lpvid._checks import real_array
-from lpvid.cost import check_compatible
-from lpvid.data import FrfData
+from lpvid.data.frf import FrfData
+from lpvid.fit.cost import check_compatible
 from lpvid.plots._style import (
     _channel,
     _db,
@@ -22,7 +22,7 @@ from lpvid.plots._style import (
     _pretty,
     _pyplot,
 )
-from lpvid.trust.covariance import Covariance, band_radius
+from lpvid.trust.uncertainty import Covariance, band_radius
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from lpvid.layout import MATRICES
-from lpvid.model import LpvModel
+from lpvid.model.layout import MATRICES
+from lpvid.model.lpv import LpvModel
 from lpvid.plots._style import _check_model, _figure, _pyplot
 
 if TYPE_CHECKING:

@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from lpvid.cost import check_compatible
-from lpvid.data import FrfData
-from lpvid.model import LpvModel
+from lpvid.data.frf import FrfData
+from lpvid.fit.cost import check_compatible
+from lpvid.model.lpv import LpvModel
 from lpvid.plots._style import (
     _KINDS,
     _channel,

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from lpvid.plots._style import _figure, _pyplot
-from lpvid.selected import SelectResult, basis_label
+from lpvid.selection.result import SelectResult, basis_label
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

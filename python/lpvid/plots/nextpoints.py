@@ -6,8 +6,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from lpvid.experiment.nextpoints import Suggestion
 from lpvid.plots._style import _figure, _pretty, _pyplot
-from lpvid.trust.nextpoints import Suggestion
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

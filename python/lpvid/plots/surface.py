@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from lpvid._checks import real_array
-from lpvid.model import LpvModel
+from lpvid.model.lpv import LpvModel
 from lpvid.plots._style import (
     _channel,
     _check_model,

@@ -10,7 +10,7 @@ Modules, one concern each: :mod:`~lpvid.readers.manifest` (the TOML file),
 :mod:`~lpvid.readers.uff`, :mod:`~lpvid.readers.table` (CSV) and
 :mod:`~lpvid.readers.matlab` (one reader per format),
 :mod:`~lpvid.readers.records` (what readers return, shared checks),
-:mod:`~lpvid.readers.select` (which record is which output/input pair),
+:mod:`~lpvid.readers.pairing` (which record is which output/input pair),
 :mod:`~lpvid.readers.lines` (one frequency axis), :mod:`~lpvid.readers.sigma`
 (sigma from coherence, variance or a relative level) and
 :mod:`~lpvid.readers.experiment` (all of it for one manifest).

@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 from lpvid.readers.lines import LINE_MODES, align_lines
 from lpvid.readers.manifest import Manifest, PointSpec, read_manifest
 from lpvid.readers.matlab import read_mat
+from lpvid.readers.pairing import select_records
 from lpvid.readers.records import COHERENCE, FRF, VARIANCE, FileError, Record, same_units
-from lpvid.readers.select import select_records
 from lpvid.readers.sigma import sigma_from_coherence, sigma_from_variance, sigma_relative
 from lpvid.readers.table import read_csv
 from lpvid.readers.uff import read_uff

@@ -8,15 +8,15 @@ from typing import Any
 
 import numpy as np
 
-from lpvid.data import FrfData
+from lpvid.data.frf import FrfData
 from lpvid.errors import ConvergenceWarning
-from lpvid.layout import fixed_mask
-from lpvid.model import LpvModel
-from lpvid.results import FitResult
-from lpvid.trust.covariance import Covariance, covariance
-from lpvid.trust.enforce import STABLE_TOL, stabilised
-from lpvid.trust.refit import Judged, dropped_mask, judged_refit, refit
-from lpvid.trust.stability import StabilityReport, format_p, stability
+from lpvid.fit.results import FitResult
+from lpvid.model.layout import fixed_mask
+from lpvid.model.lpv import LpvModel
+from lpvid.stable.enforce import STABLE_TOL, stabilised
+from lpvid.stable.scan import StabilityReport, format_p, stability
+from lpvid.trust.support import Judged, dropped_mask, judged_refit, refit
+from lpvid.trust.uncertainty import Covariance, covariance
 
 __all__ = ["Finish", "finish", "stable_fit", "trust_lines"]
 
@@ -32,8 +32,8 @@ def stable_fit(
     """``fit``, or for ``identify(..., stable=True)`` a stable replacement.
 
     When the fitted model has unstable frozen models on the range (or is
-    closer to the boundary than :data:`lpvid.trust.enforce.STABLE_TOL`),
-    it is made stable (:func:`lpvid.trust.enforce.stabilised`) and refitted
+    closer to the boundary than :data:`lpvid.stable.enforce.STABLE_TOL`),
+    it is made stable (:func:`lpvid.stable.enforce.stabilised`) and refitted
     on its support (its dropped groups fixed at zero) with stability kept.
     """
     rep = stability(fit.model, p_range, quadratic=False)
@@ -100,7 +100,7 @@ def finish(
 ) -> Finish:
     """The returned model (for gamma > 0 the judged refit), its covariance and stability.
 
-    The refit on the support is run and kept as :func:`lpvid.trust.refit.judged_refit`
+    The refit on the support is run and kept as :func:`lpvid.trust.support.judged_refit`
     decides (with ``time_data`` it minimises the sum of the FRF and time
     costs). The covariance (that of the FRF fit alone) and the stability
     report describe the model returned, linearised on its support.

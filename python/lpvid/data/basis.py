@@ -1,0 +1,365 @@
+"""Basis functions psi_1..psi_Nb of the scheduling dependency (method.md (2)).
+
+A basis maps scheduling values ``p`` (shape ``(N,)`` or ``(N, Np)``) to the
+``(N, Nb)`` array of ``psi_i(p[q])``. The constant ``psi_0 = 1`` is implicit.
+"""
+
+from __future__ import annotations
+
+import itertools
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.polynomial import legendre as npleg
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import positive_int, real_array
+from lpvid.data.schedule import range_pairs
+
+__all__ = ["Basis", "Polynomial", "Legendre", "CustomBasis", "basis_from_dict"]
+
+Domain = tuple[float, float]
+
+
+def _domains(domain: Any, n_params: int | None, required: bool) -> list[Domain] | None:
+    """Normalise ``domain`` to a list of (lo, hi) pairs, one per parameter."""
+    if domain is None:
+        if required:
+            raise ValueError("domain: required, e.g. domain=(p_min, p_max)")
+        return None
+    return range_pairs(domain, n_params, "domain")
+
+
+def _exponents(degree: int, n_params: int) -> list[tuple[int, ...]]:
+    """Multi-indices of total degree 1..degree, graded, then lexicographic (descending)."""
+    out: list[tuple[int, ...]] = []
+    for total in range(1, degree + 1):
+        level = [e for e in itertools.product(range(total + 1), repeat=n_params) if sum(e) == total]
+        out.extend(sorted(level, reverse=True))
+    return out
+
+
+class Basis(ABC):
+    """A set of basis functions ``psi_1..psi_Nb`` of the scheduling parameters."""
+
+    #: Number of scheduling parameters the basis takes.
+    n_params: int = 1
+
+    @property
+    @abstractmethod
+    def names(self) -> list[str]:
+        """Readable name of each function, e.g. ``["s", "s^2"]``."""
+
+    @abstractmethod
+    def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Values at ``p`` of shape ``(N, Np)``, as ``(N, Nb)``."""
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def _points(self, p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
+        arr = real_array(p, name, ndim=(0, 1, 2))
+        if arr.ndim == 0:
+            arr = arr.reshape(1, 1)
+        elif arr.ndim == 1:
+            arr = arr[:, None] if self.n_params == 1 else arr[None, :]
+        if arr.shape[1] != self.n_params:
+            raise ValueError(
+                f"{name}: the basis takes {self.n_params} scheduling parameter(s), "
+                f"got {arr.shape[1]} per point"
+            )
+        return arr
+
+    def __call__(self, p: ArrayLike) -> NDArray[np.float64]:
+        """Evaluate the basis.
+
+        Parameters
+        ----------
+        p : array_like, shape (N,) or (N, Np)
+            Scheduling values (a scalar is one point).
+
+        Returns
+        -------
+        ndarray, shape (N, Nb)
+            ``psi_i(p[q])`` in row ``q``, column ``i - 1``.
+
+        """
+        pts = self._points(p)
+        out = np.asarray(self._evaluate(pts), dtype=np.float64)
+        if out.shape != (pts.shape[0], len(self)):
+            raise ValueError(
+                f"basis: expected values of shape {(pts.shape[0], len(self))}, got {out.shape}"
+            )
+        return out
+
+    def sup_norms(self, p_range: Any) -> NDArray[np.float64]:
+        """Largest ``|psi_i(p)|`` over a scheduling range (method.md (25)).
+
+        Parameters
+        ----------
+        p_range : (lo, hi) or sequence of (lo, hi)
+            The scheduling range, one pair per parameter.
+
+        Returns
+        -------
+        ndarray, shape (Nb,)
+            ``||psi_i||_inf`` over the box, from a grid that contains its
+            corners (exact for the polynomial bases).
+
+        """
+        box = _domains(p_range, self.n_params, required=True)
+        assert box is not None
+        per_axis = {1: 2001, 2: 101}.get(self.n_params, 11)
+        axes = [np.linspace(lo, hi, per_axis) for lo, hi in box]
+        grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+        values = self(grid)
+        if not np.all(np.isfinite(values)):
+            raise ValueError("basis: a basis function is not finite on the scheduling range")
+        return np.max(np.abs(values), axis=0)
+
+    @abstractmethod
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready description from which :func:`basis_from_dict` rebuilds the basis."""
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Basis):
+            return NotImplemented
+        try:
+            return self.to_dict() == other.to_dict()
+        except TypeError:
+            return self is other
+
+    def __hash__(self) -> int:
+        return id(self)
+
+
+class _ScaledBasis(Basis):
+    """Shared machinery of the polynomial bases: affine scaling and multi-indices."""
+
+    kind = ""
+
+    def __init__(self, degree: int, domain: Any, n_params: int | None, domain_required: bool):
+        self.degree = positive_int(degree, "degree", minimum=0)
+        self.domain = _domains(domain, n_params, required=domain_required)
+        if self.domain is not None:
+            self.n_params = len(self.domain)
+        else:
+            self.n_params = positive_int(1 if n_params is None else n_params, "n_params")
+        self.exponents = _exponents(self.degree, self.n_params)
+
+    def scale(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Map ``p`` (N, Np) affinely so that the domain becomes [-1, 1]."""
+        if self.domain is None:
+            return p
+        lo = np.array([d[0] for d in self.domain])
+        hi = np.array([d[1] for d in self.domain])
+        return (2.0 * p - (lo + hi)) / (hi - lo)
+
+    def _var(self, k: int) -> str:
+        base = "s" if self.domain is not None else "p"
+        return base if self.n_params == 1 else f"{base}{k + 1}"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "degree": self.degree,
+            "domain": None if self.domain is None else [list(d) for d in self.domain],
+            "n_params": self.n_params,
+        }
+
+    def __repr__(self) -> str:
+        dom = (
+            None if self.domain is None else (self.domain[0] if self.n_params == 1 else self.domain)
+        )
+        return f"{type(self).__name__}({self.degree}, domain={dom})"
+
+
+class Polynomial(_ScaledBasis):
+    """Monomials ``psi_i(p) = s^i``, i = 1..degree, with ``s`` the scaled ``p``.
+
+    Parameters
+    ----------
+    degree : int
+        Highest power (0 gives no basis function: an LTI model).
+    domain : (lo, hi) or sequence of (lo, hi), optional
+        Scheduling range mapped affinely to ``s`` in [-1, 1]. Recommended:
+        raw values such as p = 48 mm give p^4 = 5.3e6 and a badly scaled
+        problem. None uses ``s = p`` unchanged.
+    n_params : int, optional
+        Number of scheduling parameters when ``domain`` is None (default 1).
+        With several parameters the basis holds every monomial of total
+        degree 1..degree.
+
+    Examples
+    --------
+    >>> import lpvid
+    >>> lpvid.Polynomial(2, domain=(0.0, 2.0))([0.0, 1.0, 2.0])
+    array([[-1.,  1.],
+           [ 0.,  0.],
+           [ 1.,  1.]])
+
+    """
+
+    kind = "polynomial"
+
+    def __init__(self, degree: int, domain: Any = None, n_params: int | None = None) -> None:
+        super().__init__(degree, domain, n_params, domain_required=False)
+
+    @property
+    def names(self) -> list[str]:
+        """Names such as ``s``, ``s^2`` or ``s1*s2^2``."""
+        out = []
+        for e in self.exponents:
+            parts = [self._var(k) + (f"^{d}" if d > 1 else "") for k, d in enumerate(e) if d > 0]
+            out.append("*".join(parts))
+        return out
+
+    def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = self.scale(p)
+        # Integer powers by repeated multiplication: a float ``**`` costs
+        # about ten times more, which shows on long trajectories (simulate).
+        powers = {1: s}
+        for d in range(2, self.degree + 1):
+            powers[d] = powers[d - 1] * s
+        out = np.empty((p.shape[0], len(self.exponents)))
+        for col, e in enumerate(self.exponents):
+            factors = [powers[d][:, k] for k, d in enumerate(e) if d]
+            out[:, col] = factors[0]
+            for f in factors[1:]:
+                out[:, col] *= f
+        return out
+
+
+class Legendre(_ScaledBasis):
+    """Legendre polynomials ``psi_i(p) = P_i(s)``, i = 1..degree, on the scaled ``p``.
+
+    Better conditioned than monomials for high degrees. With several
+    parameters the basis holds the products ``P_a(s1) P_b(s2) ...`` of total
+    degree 1..degree.
+
+    Parameters
+    ----------
+    degree : int
+        Highest degree.
+    domain : (lo, hi) or sequence of (lo, hi)
+        Scheduling range mapped to [-1, 1] (required).
+
+    """
+
+    kind = "legendre"
+
+    def __init__(self, degree: int, domain: Any) -> None:
+        super().__init__(degree, domain, None, domain_required=True)
+
+    @property
+    def names(self) -> list[str]:
+        """Names such as ``P1(s)`` or ``P1(s1)*P2(s2)``."""
+        out = []
+        for e in self.exponents:
+            parts = [f"P{d}({self._var(k)})" for k, d in enumerate(e) if d > 0]
+            out.append("*".join(parts))
+        return out
+
+    def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        s = self.scale(p)
+        cols = []
+        for e in self.exponents:
+            col = np.ones(p.shape[0])
+            for k, d in enumerate(e):
+                if d:
+                    col = col * npleg.legval(s[:, k], np.eye(d + 1)[d])
+            cols.append(col)
+        return np.stack(cols, axis=1) if cols else np.zeros((p.shape[0], 0))
+
+
+class CustomBasis(Basis):
+    """Basis functions given as Python callables.
+
+    Parameters
+    ----------
+    funcs : sequence of callable
+        Each maps scheduling values (shape ``(N,)`` for one parameter,
+        ``(N, Np)`` for several) to ``N`` real values.
+    names : sequence of str, optional
+        Names for tables and plots; default ``f1, f2, ...``.
+    n_params : int, optional
+        Number of scheduling parameters (default 1).
+
+    Notes
+    -----
+    A model with a custom basis cannot be saved to a file, since the
+    functions are Python code.
+
+    """
+
+    kind = "custom"
+
+    def __init__(
+        self,
+        funcs: Sequence[Callable[[NDArray[np.float64]], ArrayLike]],
+        names: Sequence[str] | None = None,
+        n_params: int = 1,
+    ) -> None:
+        funcs = list(funcs)
+        if not all(callable(f) for f in funcs):
+            raise TypeError("funcs: every entry must be callable")
+        self.funcs = funcs
+        self.n_params = positive_int(n_params, "n_params")
+        if names is None:
+            names = [getattr(f, "__name__", "") or f"f{k + 1}" for k, f in enumerate(funcs)]
+            names = [n if n != "<lambda>" else f"f{k + 1}" for k, n in enumerate(names)]
+        names = [str(n) for n in names]
+        if len(names) != len(funcs):
+            raise ValueError(f"names: {len(names)} names for {len(funcs)} functions")
+        self._names = names
+
+    @property
+    def names(self) -> list[str]:
+        """The names given (or ``f1, f2, ...``)."""
+        return list(self._names)
+
+    def _evaluate(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        arg = p[:, 0] if self.n_params == 1 else p
+        cols = []
+        for name, f in zip(self._names, self.funcs, strict=True):
+            v = np.asarray(f(arg), dtype=np.float64)
+            v = np.broadcast_to(v, (p.shape[0],)) if v.ndim == 0 else v.reshape(-1)
+            if v.shape != (p.shape[0],):
+                raise ValueError(
+                    f"basis: function {name} returned {v.shape[0]} values for {p.shape[0]} points"
+                )
+            cols.append(v)
+        return np.stack(cols, axis=1) if cols else np.zeros((p.shape[0], 0))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Refuse: the functions are Python code, which no file can hold."""
+        raise TypeError(
+            "CustomBasis holds Python functions, which cannot be written to a file; "
+            "use Polynomial or Legendre to save the model"
+        )
+
+    def __repr__(self) -> str:
+        return f"CustomBasis({self._names})"
+
+
+def basis_from_dict(d: dict[str, Any]) -> Basis:
+    """Rebuild a basis from :meth:`Basis.to_dict`.
+
+    Parameters
+    ----------
+    d : dict
+        The description.
+
+    Returns
+    -------
+    Basis
+
+    """
+    kind = d.get("kind")
+    if kind == "polynomial":
+        return Polynomial(d["degree"], d.get("domain"), n_params=d.get("n_params"))
+    if kind == "legendre":
+        return Legendre(d["degree"], d["domain"])
+    raise ValueError(f"basis: unknown kind {kind!r}")

@@ -1,0 +1,185 @@
+"""Scheduling values: as points, their range, and scaled to the unit box.
+
+One convention throughout lpvid: a scheduling range is one ``(lo, hi)``
+pair per parameter, given as ``(lo, hi)`` when there is one parameter and
+as ``[(lo1, hi1), (lo2, hi2), ...]`` otherwise (what
+:meth:`lpvid.Basis.sup_norms`, ``LpvModel(p_range=...)`` and the basis
+domains take).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import positive_int, real_array
+from lpvid._graphs import spanning_tree_walk
+
+__all__ = [
+    "as_rows",
+    "between_points",
+    "model_range",
+    "propagation_order",
+    "range_pairs",
+    "scheduling_range",
+    "unit_scaled",
+]
+
+
+def as_rows(p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
+    """Scheduling values as an ``(N, Np)`` array (a 1-D array is one parameter)."""
+    arr = real_array(p, name, ndim=(1, 2))
+    return arr.reshape(arr.shape[0], -1)
+
+
+def range_pairs(value: Any, n_params: int | None = None, name: str = "p_range") -> list[Any]:
+    """A scheduling range in lpvid's convention as a list of ``(lo, hi)`` pairs, checked.
+
+    Parameters
+    ----------
+    value : (lo, hi) or sequence of (lo, hi)
+        The range, one pair per parameter, every pair with ``lo < hi``.
+    n_params : int, optional
+        The number of scheduling parameters expected.
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    list of (float, float)
+
+    Examples
+    --------
+    >>> from lpvid.data.schedule import range_pairs
+    >>> range_pairs((0, 1))
+    [(0.0, 1.0)]
+
+    """
+    arr = real_array(value, name)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected (lo, hi) or a list of such pairs, got {value!r}")
+    if np.any(arr[:, 1] <= arr[:, 0]):
+        raise ValueError(f"{name}: every pair needs lo < hi, got {value!r}")
+    if n_params is not None and arr.shape[0] != n_params:
+        raise ValueError(f"{name}: {arr.shape[0]} pairs given for {n_params} scheduling parameters")
+    return [(float(lo), float(hi)) for lo, hi in arr]
+
+
+def scheduling_range(p: ArrayLike, name: str = "p") -> Any:
+    """The range spanned by scheduling values, in lpvid's convention.
+
+    Parameters
+    ----------
+    p : array_like, shape (N,) or (N, Np)
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    tuple or list of tuple
+        ``(lo, hi)`` for one parameter, ``[(lo, hi), ...]`` per parameter
+        otherwise (floats).
+
+    Examples
+    --------
+    >>> from lpvid.data.schedule import scheduling_range
+    >>> scheduling_range([3.0, 1.0, 2.0])
+    (1.0, 3.0)
+    >>> scheduling_range([[0.0, 5.0], [1.0, 4.0]])
+    [(0.0, 1.0), (4.0, 5.0)]
+
+    """
+    rows = as_rows(p, name)
+    pairs = [(float(lo), float(hi)) for lo, hi in zip(rows.min(0), rows.max(0), strict=True)]
+    return pairs[0] if len(pairs) == 1 else pairs
+
+
+def unit_scaled(p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
+    """Scheduling values ``(N, Np)`` with every parameter mapped to [0, 1].
+
+    A parameter that does not vary maps to 0.
+    """
+    rows = as_rows(p, name)
+    span = np.ptp(rows, axis=0)
+    return (rows - rows.min(axis=0)) / np.where(span > 0, span, 1.0)
+
+
+def model_range(p: ArrayLike, name: str = "p") -> Any:
+    """:func:`scheduling_range` of ``p``, or None when a parameter does not vary.
+
+    The default ``p_range`` of a model built from data at these values
+    (a range with ``lo == hi`` cannot scale group magnitudes).
+    """
+    rng = scheduling_range(p, name)
+    pairs = [rng] if isinstance(rng, tuple) else rng
+    return rng if all(hi > lo for lo, hi in pairs) else None
+
+
+def propagation_order(
+    p: NDArray[np.float64], root: int | None = None
+) -> tuple[NDArray[np.int_], NDArray[np.int_]]:
+    """Visit order and parents of the points along a minimum spanning tree.
+
+    The points are joined by the minimum spanning tree of their distances in
+    the scheduling space (each parameter scaled to [0, 1]); the tree is
+    walked breadth first from ``root``, by default the point nearest the
+    centre. In one dimension this is the chain of sorted points walked
+    outwards from the root.
+
+    Parameters
+    ----------
+    p : ndarray, shape (N, Np)
+    root : int, optional
+        The point to start from (default: the one whose farthest point is
+        nearest).
+
+    Returns
+    -------
+    order : ndarray of int
+        Points in visiting order (the root first).
+    parent : ndarray of int
+        ``parent[k]`` is the already visited neighbour of point k (-1 for the root).
+
+    """
+    N = p.shape[0]
+    s = unit_scaled(p)
+    dist = np.linalg.norm(s[:, None, :] - s[None, :, :], axis=2)
+    if root is None:
+        root = int(np.argmin(np.max(dist, axis=1)))
+    elif not 0 <= root < N:
+        raise ValueError(f"root: expected a point index in 0..{N - 1}, got {root}")
+    if N == 1:
+        return np.array([0]), np.array([-1])
+    return spanning_tree_walk(dist, root)
+
+
+def between_points(p: ArrayLike, steps: int = 8) -> NDArray[np.float64]:
+    """Scheduling values on the segments joining neighbouring points.
+
+    The segments are the edges of the minimum spanning tree of the points
+    (in one dimension: consecutive sorted points), each cut into ``steps``
+    equal parts; the points themselves are included.
+
+    Parameters
+    ----------
+    p : array_like, shape (N,) or (N, Np)
+    steps : int
+
+    Returns
+    -------
+    ndarray, shape (M, Np)
+
+    """
+    arr = as_rows(p)
+    steps = positive_int(steps, "steps")
+    order, parent = propagation_order(arr)
+    t = np.linspace(0.0, 1.0, steps + 1)[1:-1, None]
+    out = [arr]
+    for q in order[1:]:
+        a, b = arr[parent[q]], arr[q]
+        out.append(a + t * (b - a))
+    return np.concatenate(out)

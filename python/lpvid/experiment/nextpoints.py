@@ -1,0 +1,342 @@
+"""Where to measure next: the scheduling values whose FRF would shrink the model's bands most.
+
+**Criterion.** The quantity to shrink is the model's predicted relative
+FRF variance averaged over the scheduling range,
+
+    U = mean over p in the range of E||dG(p)||^2 / ||G_m(p)||^2,
+
+``||.||`` the Frobenius norm over every frequency line, output and input
+(the square of what :func:`lpvid.testing.worst_relative_error` measures
+against a truth), ``E||dG(p)||^2`` from the parameter covariance ``C`` of
+the returned model (:attr:`lpvid.IdentifyResult.covariance`, first order,
+as :meth:`lpvid.Covariance.frf_std`). ``U`` is ``tr(C W)`` with ``W`` the
+mean over the range of the sensitivity of the relative FRF to theta.
+
+One more FRF at ``p_c`` on the data's lines, with standard deviation
+``sigma_c``, adds ``H_c = J_c^T J_c`` (its sigma-weighted Jacobian, real
+and imaginary parts) to the information ``J^T J``; the covariance becomes
+``C' = C - C J_c^T (I/2 + J_c C J_c^T)^-1 J_c C`` (``C = (J^T J)^+ / 2``:
+Woodbury's identity), and the candidate that lowers ``U`` most is
+suggested. ``J_c`` factors through the frozen model at ``p_c``
+(``J_c = J_lti(p_c) (w(p_c)^T (x) I)``, ``w = [1, psi(p_c)]``), so each
+candidate costs a solve of the size of one frozen model's parameters.
+``k > 1`` points are chosen greedily: each chosen point updates ``C``
+before the next is chosen (a point is never suggested twice).
+
+**Ties.** Candidates whose predicted ``U`` lies within
+:data:`lpvid.experiment.design.TIE` (0.1 %) of the lowest promise the same;
+the one farthest from every measured (and already chosen) point is taken.
+
+**Candidates.** By default a grid over the range (the model's basis
+domain, else the data's range): 101 values for one parameter, 21 per
+parameter for two, 9 for three, 5 beyond; ``U`` is averaged on the same
+grid. Candidates outside the range are refused (the basis extrapolates
+there); measured values are left out (one FRF per scheduling value), and
+repeated candidates count once.
+
+**The new measurement's noise.** ``sigma_c`` is by default the data's
+sigma at the measured point nearest ``p_c`` (each scheduling parameter
+scaled to its range), or what the caller gives.
+
+**What it cannot see.** ``C`` is the covariance of the model on its
+support (dropped groups held at zero) on the directions the data
+determine: directions the rank rule of :mod:`lpvid.trust.uncertainty`
+leaves out (with ``N = Nb + 1`` points, transformations that differ from
+point to point) count as known here. The suggestion shrinks the band the
+covariance shows, not the model's freedom between the points that no
+band shows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import positive_int, real_array
+from lpvid._threads import single_blas
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import range_pairs
+from lpvid.experiment.design import (
+    GridParts,
+    factor,
+    frozen_grams,
+    greedy_update,
+    relative_band,
+    target,
+)
+from lpvid.fit.judge import identify_range
+from lpvid.pipeline.result import IdentifyResult
+from lpvid.trust.uncertainty import Covariance, _lti_index, band_radius, coefficient_weights
+
+__all__ = ["Suggestion", "next_points", "suggest_points"]
+
+#: Slack, relative to the range, for candidates on its edge and for
+#: candidates at a measured point.
+_SLACK = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Suggestion:
+    """Where :func:`suggest_points` suggests measuring next, and what it predicts.
+
+    Attributes
+    ----------
+    points : ndarray, shape (k,) or (k, Np)
+        The suggested scheduling values, in the order chosen.
+    measured : ndarray, shape (N,) or (N, Np)
+        The scheduling values of the identification data.
+    grid : ndarray, shape (Q,) or (Q, Np)
+        Scheduling values over the range at which the band is averaged.
+    band : ndarray, shape (Q,)
+        The relative 95 % band at ``grid`` now:
+        ``band_radius(0.95) * sqrt(E||dG||^2) / ||G_m||`` (Frobenius norms
+        over every line, output and input).
+    band_after : ndarray, shape (Q,)
+        The same, predicted once every suggested point is measured.
+    variance : ndarray, shape (k + 1,)
+        The criterion (the mean over ``grid`` of ``E||dG||^2 / ||G_m||^2``)
+        now and after each suggested point.
+    p_range : tuple or list of tuple
+        The scheduling range (the model's, else the data's).
+    """
+
+    points: NDArray[np.float64]
+    measured: NDArray[np.float64]
+    grid: NDArray[np.float64]
+    band: NDArray[np.float64]
+    band_after: NDArray[np.float64]
+    variance: NDArray[np.float64]
+    p_range: Any
+
+    def summary(self) -> str:
+        """One line per suggested point with the predicted RMS band over the range."""
+        radius = band_radius(0.95)
+        rms = radius * np.sqrt(np.maximum(self.variance, 0.0))
+        lines = [
+            f"where to measure next (RMS relative 95 % band over the range now {rms[0]:.3g}; "
+            f"the largest {np.max(self.band):.3g})"
+        ]
+        pts = self.points.reshape(len(self.points), -1)
+        for k, p in enumerate(pts):
+            where = ", ".join(f"{x:.6g}" for x in p)
+            lines.append(f"  {k + 1}. p = {where}: RMS band -> {rms[k + 1]:.3g}")
+        return "\n".join(lines)
+
+
+def _range_grid(pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
+    """The default grid over the range, shape (Q, Np).
+
+    101 values for one parameter, 21 per parameter for two, 9 for three, 5 beyond.
+    """
+    per_axis = {1: 101, 2: 21, 3: 9}.get(len(pairs), 5)
+    axes = [np.linspace(lo, hi, per_axis) for lo, hi in pairs]
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return np.stack([g.ravel() for g in mesh], axis=1)
+
+
+def _unmeasured(
+    cands: NDArray[np.float64], measured: NDArray[np.float64], pairs: list[tuple[float, float]]
+) -> NDArray[np.float64]:
+    """The candidates (M, Np) that are not measured scheduling values (within the slack)."""
+    near = np.abs(_scaled(cands, pairs)[:, None, :] - _scaled(measured, pairs)[None, :, :])
+    return cands[~np.any(np.all(near <= _SLACK, axis=2), axis=1)]
+
+
+def default_candidates(p_range: Any, measured: ArrayLike) -> NDArray[np.float64]:
+    """The candidates :func:`suggest_points` takes by default: (M, Np).
+
+    The grid over ``p_range`` (101 values for one parameter, 21 per
+    parameter for two, 9 for three, 5 beyond) less the ``measured``
+    scheduling values.
+    """
+    pairs = range_pairs(p_range)
+    rows = real_array(measured, "measured", ndim=(1, 2)).reshape(-1, len(pairs))
+    return _unmeasured(_range_grid(pairs), rows, pairs)
+
+
+def _scaled(p: NDArray[np.float64], pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
+    lo = np.array([a for a, _ in pairs])
+    hi = np.array([b for _, b in pairs])
+    return (p - lo) / (hi - lo)
+
+
+def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
+    """Candidates as (M, Np), checked to lie in the range."""
+    n_params = len(pairs)
+    arr = real_array(value, "candidates", ndim=(0, 1, 2))
+    if n_params == 1:
+        if arr.ndim == 2 and arr.shape[1] != 1:
+            raise ValueError(
+                f"candidates: expected shape (M,) or (M, 1) for one scheduling parameter, "
+                f"got {arr.shape}"
+            )
+        arr = arr.reshape(-1, 1)
+    elif arr.ndim != 2 or arr.shape[1] != n_params:
+        raise ValueError(
+            f"candidates: expected shape (M, {n_params}) for {n_params} scheduling "
+            f"parameters, got {arr.shape}"
+        )
+    if arr.shape[0] == 0:
+        raise ValueError("candidates: expected at least one scheduling value, got none")
+    s = _scaled(arr, pairs)
+    outside = np.any((s < -_SLACK) | (s > 1 + _SLACK), axis=1)
+    if np.any(outside):
+        bad = arr[outside]
+        shown = "; ".join(", ".join(f"{x:g}" for x in row) for row in bad[:5])
+        more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+        rng = ", ".join(f"({lo:g}, {hi:g})" for lo, hi in pairs)
+        raise ValueError(
+            f"candidates: {len(bad)} value(s) outside the scheduling range {rng}, where the "
+            f"model is an extrapolation nobody fitted: {shown}{more}"
+        )
+    _, first = np.unique(arr, axis=0, return_index=True)
+    return arr[np.sort(first)]
+
+
+def _noise(data: FrfData, candidates: NDArray, pairs: list, sigma: Any) -> NDArray[np.float64]:
+    """The standard deviation of a measurement at every candidate: (M, F, l, r)."""
+    shape = data.G.shape[1:]
+    if sigma is not None:
+        s = real_array(sigma, "sigma")
+        try:
+            s = np.broadcast_to(s, shape)
+        except ValueError as exc:
+            raise ValueError(
+                f"sigma: expected a value or an array broadcastable to (F, l, r) = {shape}, "
+                f"got shape {s.shape}"
+            ) from exc
+        if np.any(s <= 0):
+            raise ValueError("sigma: standard deviations must be > 0 everywhere")
+        return np.broadcast_to(s, (len(candidates), *shape))
+    measured = _scaled(data.p.reshape(data.n_points, -1), pairs)
+    at = _scaled(candidates, pairs)
+    nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
+    return data.sigma[nearest]
+
+
+def _covariance_of(result: Any) -> Covariance:
+    if not isinstance(result, IdentifyResult):
+        raise TypeError(
+            f"result: expected the IdentifyResult of lpvid.identify, got {type(result).__name__}"
+        )
+    cov = result.covariance
+    if cov is None:
+        raise ValueError(
+            "result: has no parameter covariance (result.covariance is None), and the "
+            "suggestion is computed from it; lpvid.identify sets it for the model it returns"
+        )
+    if not isinstance(cov, Covariance):
+        raise TypeError(
+            f"result.covariance: expected an lpvid.Covariance, got {type(cov).__name__}"
+        )
+    return cov
+
+
+@single_blas
+def suggest_points(
+    result: IdentifyResult, candidates: ArrayLike | None = None, k: int = 1, *, sigma: Any = None
+) -> Suggestion:
+    """The scheduling values where one more FRF would shrink the model's bands most, and why.
+
+    See the module notes (:mod:`lpvid.experiment.nextpoints`) for the criterion:
+    the relative FRF variance averaged over the scheduling range, after a
+    low-rank update of the parameter covariance with each candidate's
+    information; ``k > 1`` points greedily.
+
+    Parameters
+    ----------
+    result : IdentifyResult
+        From :func:`lpvid.identify` (its :attr:`~lpvid.IdentifyResult.covariance`
+        and data are used).
+    candidates : array_like, shape (M,) or (M, Np), optional
+        Scheduling values to choose from, inside the range (the model's,
+        else the data's); a value outside is an error. Default: a grid over
+        the range, 101 values for one parameter, 21 per parameter for two,
+        9 for three, 5 beyond (the grid the band is averaged on). Measured
+        values are left out (one FRF per scheduling value).
+    k : int
+        Points to suggest.
+    sigma : float or array_like broadcastable to (F, l, r), optional
+        Standard deviation of the new measurement on the data's lines.
+        Default: the data's sigma at the measured point nearest each
+        candidate (every parameter scaled to its range).
+
+    Returns
+    -------
+    Suggestion
+
+    Raises
+    ------
+    TypeError, ValueError
+        For a result without covariance, candidates of the wrong shape or
+        outside the range, ``k`` larger than the candidates not measured yet.
+    """
+    cov = _covariance_of(result)
+    k = positive_int(k, "k")
+    model, data = cov.model, result.data
+    n_params = model.basis.n_params
+    pairs = range_pairs(identify_range(model, data), n_params)
+    grid = _range_grid(pairs)
+    cands = grid if candidates is None else _candidates(candidates, pairs)
+    cands = _unmeasured(cands, data.p.reshape(data.n_points, -1), pairs)
+    if len(cands) < k:
+        raise ValueError(
+            f"k: {k} point(s) asked for, but only {len(cands)} candidate(s) are not measured yet"
+        )
+    index = _lti_index(model)
+    f = data.freqs_hz
+    parts = GridParts(model, f, grid)
+    W = target(parts, index)
+    R = factor(frozen_grams(model, f, cands, 1.0 / _noise(data, cands, pairs, sigma) ** 2))
+    picks, variance, after = greedy_update(
+        cov.theta,
+        W,
+        index,
+        coefficient_weights(model, cands),
+        R,
+        k,
+        _scaled(cands, pairs),
+        _scaled(data.p.reshape(data.n_points, -1), pairs),
+    )
+    points = cands[picks]
+    return Suggestion(
+        points=points[:, 0] if n_params == 1 else points,
+        measured=data.p.copy(),
+        grid=grid[:, 0] if n_params == 1 else grid,
+        band=relative_band(cov.theta, parts, index),
+        band_after=relative_band(after, parts, index),
+        variance=variance,
+        p_range=pairs[0] if n_params == 1 else pairs,
+    )
+
+
+def next_points(
+    result: IdentifyResult, candidates: ArrayLike | None = None, k: int = 1, *, sigma: Any = None
+) -> NDArray[np.float64]:
+    """The scheduling values where one more FRF measurement would shrink the model's bands most.
+
+    ``suggest_points(result, candidates, k, sigma=sigma).points``: see
+    :func:`suggest_points` for the arguments and :mod:`lpvid.experiment.nextpoints`
+    for the criterion.
+
+    Returns
+    -------
+    ndarray, shape (k,) or (k, Np)
+        In the order chosen (the first is the best single point).
+
+    Examples
+    --------
+    >>> import numpy as np, lpvid, lpvid.testing
+    >>> true = lpvid.testing.one_group_lpv(0, n=2)
+    >>> f = np.linspace(5, 60, 40)
+    >>> data = lpvid.testing.noisy_data(true, [0.0, 0.3, 0.6, 1.0], f,
+    ...                                 np.random.default_rng(0), 0.01)
+    >>> result = lpvid.identify(data, 2, true.basis, fixed={"D": True})
+    >>> lpvid.next_points(result, k=2).shape
+    (2,)
+
+    """
+    return suggest_points(result, candidates, k, sigma=sigma).points

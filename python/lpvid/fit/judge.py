@@ -1,0 +1,109 @@
+"""How lpvid tells models apart: near-ties by the noise, then simplicity.
+
+Models that fit the same data can differ only in their last bits, or by less
+than the noise in V_NLS; a choice that followed such a difference would
+follow the processor, not the data. Every choice among models in lpvid
+(the race of the starts, the start, the model on the l2,1 path, the refit)
+counts two costs as tied when they differ by less than :data:`NOISE_SIGMAS`
+standard deviations of the noise in V_NLS (``sqrt(M)`` for ``M`` complex
+residuals: V_NLS at the true system has mean ``M`` and standard deviation
+``sqrt(M)``), and decides a tie by simplicity: the scheduling dependence of
+:meth:`lpvid.model.groups.GroupNorms.dependence`, then the cost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from lpvid.data.frf import FrfData
+    from lpvid.model.lpv import LpvModel
+
+__all__ = [
+    "DEPENDENCE_TIE",
+    "NOISE_SIGMAS",
+    "VALIDATION_TIE",
+    "dependence",
+    "identify_range",
+    "noise_slack",
+    "simplest",
+    "tied",
+]
+
+#: Costs within this many standard deviations of the noise in V_NLS of the
+#: best count as equal.
+NOISE_SIGMAS = 2.0
+
+#: Scheduling dependences within this fraction of the least count as equal
+#: (then the cost decides).
+DEPENDENCE_TIE = 0.05
+
+#: Validation V_NLS within this fraction of the best counts as equal when
+#: starts are compared (:func:`lpvid.initial.choose` and the race of the
+#: starts).
+VALIDATION_TIE = 0.02
+
+
+def noise_slack(floor: float) -> float:
+    """``NOISE_SIGMAS * sqrt(floor)``: the V_NLS difference within which two models tie."""
+    return NOISE_SIGMAS * float(np.sqrt(max(float(floor), 0.0)))
+
+
+def tied(costs: Sequence[float], floor: float, tolerance: float | None = None) -> list[bool]:
+    """Which of ``costs`` tie with the best.
+
+    By default a cost ties when it is within :func:`noise_slack` of the best
+    (V_NLS on data with ``floor`` complex residuals); with ``tolerance``,
+    when it is within that fraction of the best. Not finite costs never
+    tie; when none is finite, none ties.
+
+    Examples
+    --------
+    >>> tied([100.0, 115.0, 125.0, float("nan")], floor=100)
+    [True, True, False, False]
+    >>> tied([100.0, 101.0, 103.0], floor=100, tolerance=0.02)
+    [True, True, False]
+
+    """
+    vals = np.asarray(costs, dtype=float)
+    finite = np.isfinite(vals)
+    if not finite.any():
+        return [False] * vals.size
+    best = float(vals[finite].min())
+    limit = best + noise_slack(floor) if tolerance is None else (1.0 + tolerance) * best
+    return [bool(f and v <= limit) for v, f in zip(vals, finite, strict=True)]
+
+
+def identify_range(model: LpvModel, data: FrfData) -> Any:
+    """The scheduling range a model is judged on: its basis domain, else the data's range."""
+    return model.p_range if model.p_range is not None else data.p_range
+
+
+def dependence(model: LpvModel, data: FrfData) -> float:
+    """The scheduling dependence of ``model`` over :func:`identify_range`.
+
+    See :meth:`lpvid.model.groups.GroupNorms.dependence`; 0 for an LTI model.
+    """
+    if model.n_basis == 0:
+        return 0.0
+    return model.group_norms(identify_range(model, data)).dependence()
+
+
+def simplest(dependences: Sequence[float], costs: Sequence[float]) -> int:
+    """The index of the simplest of tied models: the least dependence, then the lowest cost.
+
+    Dependences within :data:`DEPENDENCE_TIE` of the least count as equal.
+
+    Examples
+    --------
+    >>> simplest([0.50, 0.51, 2.0], [10.0, 9.0, 1.0])
+    1
+
+    """
+    deps = np.asarray(dependences, dtype=float)
+    least = float(deps.min())
+    near = [k for k, d in enumerate(deps) if d <= least * (1 + DEPENDENCE_TIE)]
+    return min(near, key=lambda k: (float(costs[k]), k))

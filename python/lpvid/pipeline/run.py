@@ -1,0 +1,453 @@
+"""The whole identification pipeline: local models, initial models, NLS, l2,1 path, a choice.
+
+:func:`identify` chains :func:`~lpvid.identify_lti`, the initial models of
+:mod:`lpvid.initial` (SMILE in every coherent form, continuation, global
+starts), :func:`~lpvid.fit_nls` and the l2,1 path of :func:`~lpvid.l21_path`,
+then chooses a model on the path and says why.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
+from typing import Any
+
+import numpy as np
+
+from lpvid._spread import check_executor
+from lpvid._threads import single_blas
+from lpvid.data.basis import Basis
+from lpvid.data.frf import FrfData
+from lpvid.errors import logger
+from lpvid.fit.fits import fit_nls, raise_if_interrupted, warn_if_unconverged
+from lpvid.fit.judge import noise_slack, tied
+from lpvid.fit.memory import check_pipeline
+from lpvid.fit.results import PathResult
+from lpvid.fit.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
+from lpvid.initial.candidates import candidates_of
+from lpvid.initial.choice import choose
+from lpvid.initial.local import local_models
+from lpvid.model.layout import strictly_proper
+from lpvid.pipeline.path import run_path
+from lpvid.pipeline.problem import Problem, check_validation, problem_of
+from lpvid.pipeline.result import IdentifyResult, PathEntry, path_entry
+from lpvid.trust.steps import finish, stable_fit
+
+__all__ = [
+    "DEFAULT_GAMMAS",
+    "PathEntry",
+    "IdentifyResult",
+    "Problem",
+    "check_gammas",
+    "check_validation",
+    "identify",
+    "refuse_beside",
+]
+
+Progress = Callable[[str], Any]
+
+
+def _say(progress: Progress | None, message: str) -> None:
+    logger.info(message)
+    if progress is not None:
+        progress(message)
+
+
+def _knee(entries: list[PathEntry]) -> tuple[int, str]:
+    """The knee of V_NLS against the number of groups (no validation data).
+
+    Each number of groups is represented by its most regularised entry
+    among those whose V_NLS ties with the lowest for that number
+    (:func:`lpvid.fit.judge.tied`): further down the path, fits with the same
+    groups differ by less than the noise at the data and by the slide of
+    the groups' sizes between the points. With the curve normalised to the
+    unit square (groups kept on x, V_NLS on y, falling from the simplest
+    model to the richest), the knee is the point farthest below the chord
+    between the two ends: where adding groups stops buying accuracy. When
+    the whole curve lies within the noise (the spread of V_NLS is within
+    :func:`lpvid.fit.judge.noise_slack`), the simplest model is as good as any.
+    """
+    floor = entries[0].noise_floor
+    by_groups: dict[int, int] = {}
+    for g in sorted({e.n_groups for e in entries}):
+        same = [k for k, e in enumerate(entries) if e.n_groups == g]
+        flags = tied([entries[k].vnls for k in same], floor)
+        by_groups[g] = max(
+            (k for k, f in zip(same, flags, strict=True) if f),
+            key=lambda k: (entries[k].gamma, -k),
+        )
+    ks = [by_groups[g] for g in sorted(by_groups)]
+    x = np.array([entries[k].n_groups for k in ks], dtype=float)
+    y = np.array([entries[k].vnls for k in ks])
+    if len(ks) == 1 or y.max() - y.min() <= noise_slack(floor):
+        k = ks[0]
+        return k, (
+            "no validation data; every model on the path fits within the noise "
+            "(spread of V_NLS below 2 sqrt(M)), so the simplest is kept"
+        )
+    xn = (x - x[0]) / (x[-1] - x[0])
+    yn = (y - y[-1]) / (y[0] - y[-1]) if y[0] != y[-1] else np.zeros_like(y)
+    depth = (1.0 - xn) - yn
+    k = ks[int(np.argmax(depth))]
+    return k, "no validation data; the knee of V_NLS against the number of groups kept"
+
+
+def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
+    if entries[0].validation_vnls is None:
+        return _knee(entries)
+    vals = np.array([e.validation_vnls for e in entries], dtype=float)
+    best = float(vals.min())
+    ok = [k for k in range(len(entries)) if vals[k] <= (1 + tolerance) * best]
+    k = min(ok, key=lambda i: (entries[i].n_groups, vals[i]))
+    return k, (
+        f"the simplest model whose validation V_NLS ({vals[k]:.5g}) is within "
+        f"{tolerance:.0%} of the best on the path ({best:.5g})"
+    )
+
+
+@single_blas
+def identify(
+    data: FrfData | Problem,
+    order: int | None = None,
+    basis: Basis | None = None,
+    gammas: Sequence[float] | None = None,
+    validation: FrfData | None = None,
+    fixed: Any = None,
+    *,
+    forms: Sequence[str] | None = None,
+    routes: Sequence[str] = ROUTES,
+    tolerance: float = 0.1,
+    settings: L21Settings | None = None,
+    progress: Progress | None = None,
+    time_data: Any = None,
+    stable: bool = False,
+    refit: bool = True,
+    executor: Executor | None = None,
+) -> IdentifyResult:
+    """Identify an LPV model from FRF data: the whole pipeline.
+
+    1. One LTI model per scheduling point (:func:`~lpvid.identify_lti`).
+    2. Initial LPV models by several routes (:func:`lpvid.initial_candidates`):
+       SMILE over ``basis`` in every coherent form from the plain local
+       models, the same from local models found by continuation along the
+       scheduling axis, and global starts from one well-determined local
+       model; each is refined by :func:`~lpvid.fit_nls`. The start is chosen
+       by :func:`lpvid.initial.choose`: among models stable between the
+       points, the lowest validation V_NLS (identification V_NLS without
+       validation data), the simpler on a near tie.
+    3. The reweighted l2,1 path over ``gammas`` from the refined start
+       (as :func:`~lpvid.l21_path`: warm-started, largest gamma first).
+       With ``validation`` data and one scheduling point per coefficient
+       matrix (directions flat at the data), a fit that validates more than
+       ``tolerance`` above the best so far is also tried with its steps
+       kept off the flat directions (``fit_l21(..., pinned=True)``) and the
+       better one kept (see :mod:`lpvid.pipeline.path`).
+    4. A choice among the unregularised model and the path: with
+       ``validation`` data, the simplest model whose validation V_NLS is
+       within ``tolerance`` of the best; without, the knee of the
+       accuracy-versus-number-of-groups curve, each number of groups
+       represented by its most regularised fit within the noise of the
+       best with that number.
+    5. With ``refit`` and validation data, the chosen model refitted on
+       its support (dropped groups fixed at zero), kept only when it
+       validates better (:func:`lpvid.trust.support.judged_refit`: without
+       validation data nothing can judge it, and on systems with a known
+       truth it interpolated worse); then the parameter covariance of the
+       model returned (linearised on its support) and the stability of its
+       frozen models over the scheduling range. ``reason`` says whether the
+       model was refitted.
+
+    With ``time_data`` (records along a varying scheduling trajectory),
+    steps 1-2 use the FRF data alone; the chosen start is then refined on
+    the sum of both costs (:func:`~lpvid.fit_nls` with ``time_data``), and
+    the path and the choice run on that sum, each part weighted by its own
+    noise.
+
+    Every argument but ``progress`` and ``executor`` goes into one
+    :class:`lpvid.Problem`, checked once before any work (``settings``
+    those of the path's l2,1 fits, default ``L21Settings(max_outer=10)``,
+    its ``ftol`` also that of the starts' fits; ``gammas``, ``tolerance``,
+    ``routes``, ``forms``, ``stable`` and ``refit`` as in
+    :class:`lpvid.IdentifySettings`); ``identify(problem)`` takes one made
+    beforehand, the other arguments then left out.
+
+    Parameters
+    ----------
+    data : FrfData or Problem
+        Identification data, or the whole problem.
+    order : int
+        Number of states.
+    basis : Basis
+        Basis functions of the scheduling dependency (normalise the
+        scheduling range: e.g. ``Polynomial(4, domain=(p_min, p_max))``).
+    gammas : sequence of float, optional
+        Regularisation weights (lpvid's normalised gamma, see
+        :func:`~lpvid.fit_l21`); default :data:`DEFAULT_GAMMAS`.
+    validation : FrfData, optional
+        Data at other scheduling values, used to judge every model.
+    fixed : optional
+        Parameters kept fixed (see :func:`~lpvid.fixed_mask`). With
+        ``{"D": True}`` the local models are strictly proper and D stays zero.
+    forms : sequence of str, optional
+        Coherent forms to try (default all, see :data:`lpvid.initial.interpolation.FORMS`).
+    routes : sequence of str
+        Routes to initial models: ``"plain"``, ``"continuation"``,
+        ``"global"`` (default all).
+    tolerance : float
+        Relative slack on the best validation V_NLS for the choice.
+    settings : L21Settings, optional
+        Settings of the l2,1 fits on the path; default
+        ``L21Settings(max_outer=10)``.
+    progress : callable, optional
+        Called with a short message at every stage and every fit on the
+        path (the same messages go to the ``lpvid`` logger at INFO).
+    time_data : TimeData or TimeCost, optional
+        Time records of the same system (see :func:`lpvid.fit_time`).
+    stable : bool
+        Keep every frozen model on the scheduling range (the basis domain,
+        else the data's range) stable: each model of the path (and the
+        unregularised one) that is not is replaced by its refit on its
+        support with stability kept, from the model made stable
+        (:func:`lpvid.stable.enforce.stabilised`); the choice is then among
+        stable models. (The l2,1 fits themselves run unconstrained: at an
+        active stability constraint, rejected cone steps would stop their
+        simplification.)
+    refit : bool
+        With validation data, refit the chosen model by Levenberg-Marquardt
+        with its dropped groups fixed at zero (removes the shrinkage of the
+        l2,1 penalty) and return the refit when it validates better
+        (:attr:`IdentifyResult.refitted`). False: never refit.
+    executor : concurrent.futures.Executor, optional
+        Where the independent fits run, each one task: the local model of
+        every scheduling point, the runners of every round of the race of
+        the starts, and (on an executor of other processes, such as a Dask
+        cluster) a guarded path's pinned fit beside the warm one at every
+        gamma, dropped when not needed (on threads here it would take the
+        warm fit's cores). The results are taken in a fixed order, never as
+        they finish, so the run is the same to the last bit: the same
+        local models, the same starts kept and dropped, the same path and
+        model. Default: here, one after the other. The core already spreads
+        every fit over the cores, and threads gained nothing on a 2-core
+        machine (``benches/bench_executor.py``: 0.95-1.06 of the time per
+        stage on the gantry, n = 10 and n = 16). A Dask cluster:
+        ``distributed.Client(address).get_executor()`` (its workers need
+        lpvid; the data, models and fits are pickled to them). Tasks on
+        threads here run at once, each fit with its own memory: the check
+        before any work (MemoryError below) counts one fit, and every fit
+        checks again as it starts.
+
+    Returns
+    -------
+    IdentifyResult
+
+    Warns
+    -----
+    ConvergenceWarning
+        When the unregularised fit or a fit on the path stops at its
+        iteration limit with its objective still falling (the entry's
+        ``converged`` is then False), and when the chosen model has unstable
+        frozen models on the scheduling range.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        When Ctrl-C stops one of the fits. With an executor, the tasks not
+        started are cancelled and the fits running on threads of this
+        process stopped (at their next step) before it is raised; tasks in
+        other processes finish there and are dropped.
+    ValueError
+        On bad arguments, and when the start chosen on the FRFs diverges
+        along a time record (the message names the record and the sample).
+    MemoryError
+        Before any work, when the run needs more memory than the process
+        may allocate (:func:`lpvid.available_memory`). Its peak is that of
+        its largest fit, every parameter free: with ``P = (Nb + 1)(n + l)
+        (n + r)`` parameters, ``L = (n + l)(n + r)`` per LTI model and
+        ``F_t = 4 floor(128 / (l r))`` lines per block, about ``8 P^2`` bytes
+        for ``J^T J`` and as much again during a Levenberg-Marquardt step or
+        ``144 K^2`` (``K = Nb P / (Nb + 1)``: two cone programs at once) during
+        an l2,1 step, plus one evaluation: ``4 L^2 N ceil(F / F_t)`` for the
+        Gram pieces of the blocks of lines or ``8 L^2 (N + (Nb + 1)(Nb + 2)
+        / 2) + 8 P^2`` for the points' Gram matrices, their sums and
+        ``J^T J``; with ``refit``, ``64 P^2`` for the covariance; then half
+        as much again and 64 MB for what the allocator holds back and the
+        first run's modules (:func:`lpvid.fit.memory.resident`). At n = 16 2x2
+        (N = 9, F = 500) that is 529 MB, n = 24 3x3 (N = 9, F = 1000)
+        1.47 GB; ``benches/bench_scale.py`` measured 409-465 MB and 1.29 GB
+        of growth (:func:`lpvid.fit.memory.pipeline_memory`).
+    """
+    t0 = time.perf_counter()
+    held = dict(
+        order=order,
+        basis=basis,
+        gammas=gammas,
+        validation=validation,
+        fixed=fixed,
+        forms=forms,
+        routes=routes,
+        tolerance=tolerance,
+        settings=settings,
+        time_data=time_data,
+        stable=stable,
+        refit=refit,
+    )
+    if isinstance(data, Problem):
+        refuse_beside(**held)
+        problem = data
+    else:
+        problem = problem_of(data, **held)
+    executor = check_executor(executor)
+    return _run(problem, progress=progress, executor=executor, t0=t0)
+
+
+#: identify's arguments that a Problem holds, with their defaults.
+_HELD = dict(
+    order=None,
+    basis=None,
+    gammas=None,
+    validation=None,
+    fixed=None,
+    forms=None,
+    routes=ROUTES,
+    tolerance=0.1,
+    settings=None,
+    time_data=None,
+    stable=False,
+    refit=True,
+)
+
+
+def refuse_beside(**arguments: Any) -> None:
+    """Refuse the arguments a :class:`Problem` holds when one is given (each must be left out)."""
+    given = [
+        name
+        for name, value in arguments.items()
+        if value is not _HELD[name] and not (_HELD[name] is not None and value == _HELD[name])
+    ]
+    if given:
+        raise TypeError(
+            f"{', '.join(given)}: the problem holds these; give them to lpvid.Problem "
+            "(or problem.replace(...)), not beside it"
+        )
+
+
+def _run(
+    problem: Problem, *, progress: Progress | None, executor: Executor | None, t0: float
+) -> IdentifyResult:
+    """The pipeline of :func:`identify` on a checked problem (nothing it holds is checked again)."""
+    data, n, basis, fixed = problem.data, problem.order, problem.basis, problem.fixed
+    validation, time_cost, p_range = problem.validation, problem.time_data, problem.p_range
+    settings, starts = problem.settings, problem.settings.starts
+    l21, tol, stable = settings.path.l21, settings.path.tolerance, settings.stable
+    gs = np.asarray(settings.path.gammas, dtype=float)
+    check_pipeline("identify", data, n, basis, time_cost, settings.refit)
+    timings: dict[str, float] = {}
+
+    _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
+    t = time.perf_counter()
+    local = local_models(data, n, strictly_proper=strictly_proper(fixed), executor=executor)
+    timings["local_s"] = time.perf_counter() - t
+
+    _say(progress, f"initial models ({', '.join(starts.routes)}), each refined by fit_nls")
+    t = time.perf_counter()
+    candidates = candidates_of(
+        data,
+        n,
+        basis,
+        fixed,
+        validation=validation,
+        routes=starts.routes,
+        forms=starts.forms,
+        local=local,
+        diagnosis=None,
+        max_iter=starts.max_iter,
+        ftol=starts.ftol,
+        halving=starts.halving,
+        executor=executor,
+    )
+    if not candidates:
+        raise ValueError("no initial model could be built for these local models")
+    start, initial_reason = choose(candidates)
+    timings["smile_s"] = time.perf_counter() - t
+    assert start.fit is not None and start.start is not None
+    nls = start.fit
+    warn_if_unconverged(nls, "the unregularised fit (fit_nls)", stacklevel=2)
+    for c in sorted(candidates, key=lambda c: (c.validation_vnls or 0.0, c.vnls)):
+        val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
+        dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
+        state = ("" if c.stable else ", unstable") + dropped
+        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
+    timings["nls_s"] = nls.timings["total_s"]
+    if time_cost is not None:
+        _say(progress, f"refining the {start.name} start on the FRFs and the time records")
+        nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
+        warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
+        timings["nls_s"] += nls.timings["total_s"]
+    if stable:
+        nls = stable_fit(nls, data, fixed, l21.threshold, p_range, time_cost)
+
+    _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
+    t = time.perf_counter()
+    results, entries = run_path(
+        nls,
+        sorted(gs, reverse=True),
+        data,
+        validation=validation,
+        tolerance=tol,
+        settings=l21,
+        fixed=fixed,
+        p_range=p_range,
+        stable=stable,
+        time_cost=time_cost,
+        say=lambda message: _say(progress, message),
+        executor=executor,
+    )
+    path = PathResult(results)
+    timings["path_s"] = time.perf_counter() - t
+    chosen, reason = _choose(entries, tol)
+    e = entries[chosen]
+    t = time.perf_counter()
+    done = finish(
+        e.model,
+        e.gamma,
+        data,
+        fixed,
+        l21.threshold,
+        validation=validation,
+        validation_vnls=e.validation_vnls,
+        do_refit=settings.refit,
+        stable=stable,
+        p_range=p_range,
+        time_data=time_cost,
+    )
+    reason = f"{reason}; {done.note}"
+    refit_entry = (
+        None
+        if done.refit is None
+        else path_entry(e.gamma, done.refit, data, validation, l21.threshold, time_cost)
+    )
+    timings["finish_s"] = time.perf_counter() - t
+    timings["total_s"] = time.perf_counter() - t0
+    return IdentifyResult(
+        model=done.model,
+        chosen=chosen,
+        reason=reason,
+        entries=entries,
+        initial=start.start,
+        start=start.name,
+        candidates=candidates,
+        initial_reason=initial_reason,
+        local=local,
+        nls=nls,
+        path=path,
+        data=data,
+        validation=validation,
+        timings=timings,
+        time_data=time_cost,
+        refit=done.refit,
+        refit_entry=refit_entry,
+        refitted=done.refitted,
+        covariance=done.covariance,
+        stability=done.stability,
+    )

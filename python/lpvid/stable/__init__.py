@@ -1,0 +1,15 @@
+"""Stability over the scheduling range: the check, the certificate, and how fits keep it.
+
+Modules
+-------
+scan
+    :func:`lpvid.stability` and :class:`lpvid.StabilityReport`: every frozen
+    model on the continuum of the range (grid, guardian-map crossings, refinement).
+lyapunov
+    :class:`lpvid.LyapunovCertificate`: a common quadratic Lyapunov function
+    over the range as a linear matrix inequality.
+ranges
+    Scheduling ranges for stability statements; ``A(p)`` as a polynomial.
+enforce
+    How the fits keep the frozen models stable (``stable=True``).
+"""
