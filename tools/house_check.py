@@ -12,8 +12,8 @@ Two rules, both about how the code is laid out rather than what it does:
   ``if TYPE_CHECKING:`` (an import made only for a type hint is still a tie
   between two modules). A package's ``__init__.py`` is a module like any
   other: ``from lpvid.initial import x`` ties the importer to
-  ``lpvid/initial/__init__.py``, and so does ``from lpvid.initial.smile
-  import x`` (besides ``lpvid.initial.smile``) when the importer is not in
+  ``lpvid/initial/__init__.py``, and so does ``from lpvid.initial.interpolation
+  import x`` (besides ``lpvid.initial.interpolation``) when the importer is not in
   ``lpvid.initial`` itself, because Python runs the package's
   ``__init__.py`` first. Inside a package its own ``__init__.py`` is not
   counted (or every package that re-exports its modules would be a cycle);
@@ -21,6 +21,14 @@ Two rules, both about how the code is laid out rather than what it does:
   is known by its type stub (``_core.pyi``).
 - **No source file over 500 lines**: ``python/lpvid/**/*.py`` and
   ``rust/**/*.rs`` (tests and benches are not counted).
+- **The README's package map is true**: the table below the line
+  :data:`MAP_MARK` in ``README.md`` has one row per folder of
+  ``python/lpvid`` (none missing, none that is not there), and its last
+  column names what the folder's modules may import: every import from a
+  module of one folder into another folder (or into a public top-level
+  module such as ``lpvid.testing``, or ``lpvid`` itself) must be listed
+  there. The private top-level modules (``lpvid._*``) and ``lpvid.errors``
+  may be imported from anywhere.
 
 Prints every cycle (the modules of one strongly connected component of the
 import graph, with one closed path through them) and every long file, then a
@@ -32,6 +40,7 @@ Uses only the standard library, so that it runs before anything is installed.
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -43,12 +52,20 @@ __all__ = [
     "imports_of",
     "long_files",
     "main",
+    "map_breaks",
+    "package_map",
     "module_names",
     "one_cycle",
 ]
 
 #: Most lines a source file may have.
 LIMIT = 500
+
+#: The line of README.md right above the package map's table.
+MAP_MARK = "<!-- package map: tools/house_check.py keeps it true -->"
+
+#: Top-level modules every folder may import without listing them.
+FREE = re.compile(r"^lpvid\.(_[A-Za-z0-9_]*|errors)$")
 
 
 def module_names(package: Path) -> dict[str, Path]:
@@ -280,6 +297,97 @@ def long_files(root: Path, limit: int = LIMIT) -> list[tuple[Path, int]]:
     return out
 
 
+def package_map(readme: str) -> dict[str, set[str]] | None:
+    """The README's package map: each folder with what it may import.
+
+    Parameters
+    ----------
+    readme : str
+        The text of ``README.md``.
+
+    Returns
+    -------
+    dict of str to set of str, or None
+        For every row of the table below :data:`MAP_MARK`: the folder named
+        in backticks in its first cell (``data/``, without the slash), and
+        the names in backticks in its last cell (folders without their
+        slash; ``lpvid`` or ``testing`` for top-level modules). None when
+        the README has no map.
+    """
+    lines = readme.splitlines()
+    if MAP_MARK not in lines:
+        return None
+    found: dict[str, set[str]] = {}
+    for line in lines[lines.index(MAP_MARK) + 1 :]:
+        if not line.startswith("|"):
+            if found:
+                break
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        names = re.findall(r"`([\w.]+)/?`", cells[0])
+        if names:
+            found[names[0]] = set(re.findall(r"`([\w.]+)/?`", cells[-1]))
+    return found
+
+
+def map_breaks(
+    graph: Mapping[str, Iterable[str]], folders: Iterable[str], the_map: Mapping[str, set[str]]
+) -> list[str]:
+    """What the package map gets wrong about the import graph.
+
+    Parameters
+    ----------
+    graph : mapping of str to iterable of str
+        The package's import graph (:func:`import_graph`).
+    folders : iterable of str
+        The folders (sub-packages) of ``python/lpvid``, by name.
+    the_map : mapping of str to set of str
+        The map (:func:`package_map`).
+
+    Returns
+    -------
+    list of str
+        One line per folder missing from the map or named by it but absent,
+        and per import that the map does not allow (see the module's
+        docstring), sorted.
+    """
+    folders = set(folders)
+    breaks = [
+        f"package map: python/lpvid/{f}/ has no row in README.md's map"
+        for f in folders - set(the_map)
+    ]
+    breaks += [
+        f"package map: README.md names {f}/, which is not a folder of python/lpvid"
+        for f in set(the_map) - folders
+    ]
+
+    def place(module: str) -> str:
+        parts = module.split(".")
+        if len(parts) == 1:
+            return "lpvid"
+        return parts[1]
+
+    # One line per importer and folder it may not import (naming the
+    # module, not the package's __init__ that comes with it).
+    seen: dict[tuple[str, str], str] = {}
+    for importer, targets in graph.items():
+        here = place(importer)
+        if here not in folders or here not in the_map:
+            continue
+        for target in sorted(targets, key=len):
+            there = place(target)
+            if not (there == here or FREE.match(target) or there in the_map[here]):
+                seen[(importer, there)] = target
+    for (importer, there), target in seen.items():
+        here = place(importer)
+        what = f"{there}/" if there in folders else there
+        breaks.append(
+            f"package map: {importer} imports {target}, "
+            f"but the map does not let {here}/ import {what}"
+        )
+    return sorted(set(breaks))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Check a project and print what breaks the house rules.
 
@@ -292,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 when there is no cycle and no long file, 1 otherwise.
+        0 when there is no cycle, no long file and the map is true, 1 otherwise.
     """
     args = sys.argv[1:] if argv is None else argv
     root = Path(args[0] if args else ".").resolve()
@@ -309,8 +417,20 @@ def main(argv: list[str] | None = None) -> int:
     long = long_files(root)
     for path, count in long:
         print(f"long file: {path} {count} lines (limit {LIMIT})")
-    print(f"house: {len(found)} import cycle(s), {len(long)} file(s) over {LIMIT} lines")
-    return 1 if found or long else 0
+    readme = root / "README.md"
+    the_map = package_map(readme.read_text(encoding="utf-8")) if readme.is_file() else None
+    if the_map is None:
+        breaks = [f"package map: README.md has no map (the line {MAP_MARK!r} above a table)"]
+    else:
+        folders = [p.parent.name for p in package.glob("*/__init__.py")]
+        breaks = map_breaks(graph, folders, the_map)
+    for line in breaks:
+        print(line)
+    print(
+        f"house: {len(found)} import cycle(s), {len(long)} file(s) over {LIMIT} lines, "
+        f"{len(breaks)} package map error(s)"
+    )
+    return 1 if found or long or breaks else 0
 
 
 if __name__ == "__main__":
