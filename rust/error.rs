@@ -56,7 +56,7 @@ pub enum Error {
     /// address-space limit) is smaller than what the run needs.
     #[error(
         "out of memory: could not allocate {} for {what}",
-        crate::memory::human(*bytes)
+        human(*bytes)
     )]
     OutOfMemory {
         /// Size of the allocation that failed, in bytes.
@@ -150,5 +150,19 @@ mod tests {
             "{e:?}"
         );
         assert_eq!(catch_panic(|| Ok(3)), Ok(3));
+    }
+}
+
+/// A size in bytes for people: `1.25 GB`, `340 MB`, `12 kB`.
+pub fn human(bytes: usize) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.2} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else if b >= 1e3 {
+        format!("{:.0} kB", b / 1e3)
+    } else {
+        format!("{bytes} bytes")
     }
 }

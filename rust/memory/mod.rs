@@ -14,6 +14,7 @@
 
 pub mod estimate;
 
+pub use crate::error::human;
 use crate::error::{Error, Result};
 use faer::Mat;
 use std::cell::Cell;
@@ -71,20 +72,6 @@ fn injected() -> bool {
         _ => None,
     });
     before == Ok(0)
-}
-
-/// A size in bytes for people: `1.25 GB`, `340 MB`, `12 kB`.
-pub fn human(bytes: usize) -> String {
-    let b = bytes as f64;
-    if b >= 1e9 {
-        format!("{:.2} GB", b / 1e9)
-    } else if b >= 1e6 {
-        format!("{:.0} MB", b / 1e6)
-    } else if b >= 1e3 {
-        format!("{:.0} kB", b / 1e3)
-    } else {
-        format!("{bytes} bytes")
-    }
 }
 
 /// [`Error::OutOfMemory`] for an allocation of `bytes` for `what` that
