@@ -12,6 +12,7 @@ runs each task as it is handed out, one that leaves some never started.
 import logging
 import os
 import re
+import signal
 import threading
 import time
 import warnings
@@ -150,9 +151,16 @@ class _Now(Executor):
 
 
 def _select(*args, **kwargs):
+    """select, its convergence warnings hidden; a KeyboardInterrupt out of it fails the test.
+
+    (Not left to stop pytest: select's own Ctrl-C handling is what is tested.)
+    """
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
-        return lpvid.select(*args, **kwargs)
+        try:
+            return lpvid.select(*args, **kwargs)
+        except KeyboardInterrupt as exc:
+            raise AssertionError(f"select raised KeyboardInterrupt: {exc}") from exc
 
 
 def _free(order, kept, fixed=()):
@@ -424,7 +432,28 @@ def test_ctrl_c_before_any_pair_is_judged(fake):
     fake(NUMBERS, fail={(2, 2, None)})
     now = _Now(first=1)  # the one run done failed
     with pytest.raises(KeyboardInterrupt, match="^select: interrupted before any pair was done"):
-        _select(FIVE, [1, 2], [1, 2], validation=VAL, executor=now, progress=_stop_at_first)
+        lpvid.select(FIVE, [1, 2], [1, 2], validation=VAL, executor=now, progress=_stop_at_first)
+
+
+def test_ctrl_c_on_another_thread_is_seen_while_every_run_waits(fake, python_sigint):
+    """Rejects a wait for the runs that does not wake up to see Ctrl-C (no polling)."""
+    fake(NUMBERS)
+    gate = threading.Event()
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(gate.wait, 10)  # the only worker is busy: the pairs wait in the queue
+        # SIGINT delivered to the timer's thread: the main thread must still see it
+        timer = threading.Timer(
+            0.2, lambda: signal.pthread_kill(threading.get_ident(), signal.SIGINT)
+        )
+        t0 = time.perf_counter()
+        timer.start()
+        try:
+            with pytest.raises(KeyboardInterrupt, match="before any pair was done"):
+                lpvid.select(FIVE, [1, 2], [1], validation=VAL, executor=pool)
+            assert time.perf_counter() - t0 < 5.0  # long before the gate opens
+        finally:
+            timer.cancel()
+            gate.set()
 
 
 def test_ctrl_c_does_not_wait_for_the_runs_going_on(fake, monkeypatch):
@@ -481,11 +510,15 @@ def test_a_problem_gives_every_run_its_data_and_settings(fake):
     settings = lpvid.settings.IdentifySettings(
         path=lpvid.settings.PathSettings(gammas=[0.5, 0.05], tolerance=0.5)
     )
-    problem = lpvid.Problem(FIVE, 1, lpvid.Polynomial(1), VAL, {"D": True}, settings=settings)
+    records = lpvid.TimeData(np.ones(50), np.full(50, 0.5), np.zeros(50), dt=1e-3)
+    problem = lpvid.Problem(
+        FIVE, 1, lpvid.Polynomial(1), VAL, {"D": True}, records, settings=settings
+    )
     sel = _select(problem, [1, 2], [1, 2], executor=_Now())
     assert sel.rule == "validation" and sel.tolerance == 0.5
     for _, d, q, run in f.calls:
         assert run.validation is VAL and run.fixed == {"D": True} and run.settings is settings
+        assert run.time_data is problem.time_data
         assert run.data is FIVE and q is None
         assert run.basis == lpvid.Polynomial(d, domain=(0.0, 1.0))
     for r in sel.grid:
@@ -517,6 +550,16 @@ def test_gammas_tolerance_and_fixed_reach_every_run(fake):
     assert sorted(seen) == [(1, 1), (2, 1)]
     assert {(n, str(run.fixed)) for n, _, _, run in f.calls} == {(1, "None"), (2, "{'A': [0]}")}
     assert sel.grid[1].n_free == _free(2, {"A": [1]}) - 4  # A's constant part fixed
+    # a callable may give a mask over theta: it is for one pair, that one's layout
+    from lpvid.capacity import zero_model
+
+    def mask(order, basis):
+        return lpvid.fixed_mask(zero_model(order, basis, FIVE), {"B": True})
+
+    f = fake({(1, 1): (40.0, {}, None), (2, 1): (1.0, {"A": [1]}, None)})
+    sel = _select(FIVE, [1, 2], [1], fixed=mask, executor=_Now())
+    assert sel.grid[1].n_free == _free(2, {"A": [1]}) - 2  # B's 2 entries, constant part
+    assert all(np.array_equal(run.fixed, mask(n, run.basis)) for n, _, _, run in f.calls)
 
 
 @pytest.mark.parametrize(
@@ -551,6 +594,17 @@ def test_bad_arguments_are_refused_by_name(fake, kwargs, error, message):
         lpvid.select(**args)
     assert str(info.value) == message
     assert f.calls == []
+
+
+def test_a_bad_order_or_degree_is_refused_by_name(fake):
+    """Rejects a bad order or degree refused without naming the argument."""
+    fake(NUMBERS)
+    with pytest.raises(ValueError, match="^orders: "):
+        lpvid.select(FIVE, [1, 0], [1])
+    with pytest.raises(ValueError, match="^bases: "):
+        lpvid.select(FIVE, [1], [1, -1])
+    with pytest.raises(TypeError, match="^bases: "):
+        lpvid.select(FIVE, [1], [1, "poly"])
 
 
 def test_the_fixed_parameters_are_checked_for_every_pair(fake):

@@ -167,9 +167,14 @@ def test_held_out_points_are_the_interior_ones():
     p = np.array([[0.0, 0.0], [1.0, 2.0], [0.5, 1.0], [0.2, 2.0], [0.7, 0.5], [1.0, 0.3]])
     data = lpvid.FrfData(p, f, np.ones((6, 3, 1, 1)))
     assert held_out_points(data, [lpvid.Polynomial(1, n_params=2)]) == [2, 4]
+    # parameters on ranges that start apart: a point at the second's lowest is an edge
+    p = np.array([[0.0, 2.0], [1.0, 2.0], [0.5, 1.0], [0.5, 3.0], [0.5, 2.0], [0.3, 2.5]])
+    data = lpvid.FrfData(p, f, np.ones((6, 3, 1, 1)))
+    assert held_out_points(data, [lpvid.Polynomial(1, n_params=2)]) == [4, 5]
     one = lpvid.FrfData(np.linspace(0, 1, 5), f, np.ones((5, 3, 1, 1)))
     assert held_out_points(one, [lpvid.Polynomial(2)]) == [1, 2, 3]  # N = Nb + 3: enough
     assert held_out_points(one, [lpvid.Polynomial(3)]) == []  # N = Nb + 2: not
+    assert held_out_points(one, [lpvid.Polynomial(1), lpvid.Polynomial(3)]) == []  # for every basis
 
 
 def test_the_reason_names_what_judged_and_the_numbers():
