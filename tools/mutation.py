@@ -55,8 +55,8 @@ PY_TESTS = {
     ],
     "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
-    "selection.py": ["tests/test_select_rules.py", "tests/test_select.py"],
-    "selected.py": ["tests/test_select_rules.py", "tests/test_select.py"],
+    "selection.py": ["tests/test_select_rules.py", "tests/test_select_parts.py"],
+    "selected.py": ["tests/test_select_rules.py"],
     "timefit.py": ["tests/test_timefit.py"],
     "timecost.py": ["tests/test_timefit.py", "tests/test_timedata.py"],
     "readers/": [
