@@ -386,7 +386,7 @@ def test_a_pairs_seconds_add_up_its_runs(fake):
     t0 = time.perf_counter()
     sel = _select(FIVE, [1], [1], executor=_Now())
     elapsed = time.perf_counter() - t0
-    assert 4 * 0.02 <= sel.row.seconds <= elapsed <= sel.timings["total_s"] + 0.01
+    assert 4 * 0.02 <= sel.row.seconds <= sel.timings["total_s"] <= elapsed
 
 
 def _stop_at_first(message):
