@@ -55,8 +55,8 @@ PY_TESTS = {
     ],
     "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
-    "selection/grid.py": ["tests/test_select_rules.py", "tests/test_select.py"],
-    "selection/result.py": ["tests/test_select_rules.py", "tests/test_select.py"],
+    "selection/grid.py": ["tests/test_select_rules.py", "tests/test_select_parts.py"],
+    "selection/result.py": ["tests/test_select_rules.py"],
     "fit/timefit.py": ["tests/test_timefit.py"],
     "fit/timecost.py": ["tests/test_timefit.py", "tests/test_timedata.py"],
     "readers/": [

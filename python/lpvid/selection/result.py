@@ -229,7 +229,7 @@ class SelectResult:
     def table(self) -> str:
         """The grid, one line per pair, the chosen one marked."""
         val = {"validation": "val V/floor", "held-out": "held-out V/fl"}.get(self.rule)
-        head = f"{'':2}{'order':>5} {'basis':<12} {'V_NLS':>11} {'V/floor':>8}"
+        head = f"{'':2}{'order':>5} {'basis':<12} {'V_NLS':>11} {'V/floor':>9}"
         head += f" {val:>13}" if val else ""
         head += f" {'groups':>6} {'free':>5} {'seconds':>8}"
         lines = [head]
@@ -237,7 +237,7 @@ class SelectResult:
             mark = "->" if k == self.chosen else ""
             ratio = None if r.vnls is None or not r.noise_floor else r.vnls / r.noise_floor
             line = f"{mark:2}{r.order:5d} {basis_label(r.basis):<12} {_number(r.vnls, 11)}"
-            line += f" {_number(ratio, 8, '.4g')}"
+            line += f" {_number(ratio, 9, '.4g')}"
             if val:
                 vr = (
                     None
