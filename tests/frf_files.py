@@ -3,7 +3,7 @@
 Each writes what an analyzer or MATLAB would, from arrays of one point:
 freqs (F,), G (F, l, r), and optionally coherence or variance (F, l, r).
 The files are written by pyuff, numpy and scipy.io, never by lpvid.
-:func:`write_readme_files` writes the files the README's manifest names.
+:func:`write_example_files` writes the files docs/data.md's example manifest names.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ OUT_NODES = (3, 2)  # UFF response nodes of the outputs (direction +X)
 IN_NODES = (1, 4)  # UFF reference nodes of the inputs (direction +Z)
 OUTPUTS = ("head", "carriage")
 INPUTS = ("torque", "force")
-README_AVERAGES = 20  # the averages of the README's coherence
+EXAMPLE_AVERAGES = 20  # the averages of docs/data.md's coherence
 
 
 def write_uff(
@@ -236,13 +236,13 @@ def coherence_for(G: np.ndarray, sigma: np.ndarray, averages: int) -> np.ndarray
     return 1.0 / (1.0 + averages * sigma**2 / np.abs(G) ** 2)
 
 
-def readme_manifest() -> str:
-    """The README's example manifest (its first TOML block)."""
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    return re.search(r"```toml\n(# gantry.toml\n.*?)```", readme, re.S).group(1)
+def example_manifest() -> str:
+    """The example manifest of docs/data.md ("Measured FRF files", its first TOML block)."""
+    page = (Path(__file__).parents[1] / "docs" / "data.md").read_text()
+    return re.search(r"```toml\n(# gantry.toml\n.*?)```", page, re.S).group(1)
 
 
-def write_readme_files(folder: Path, text: str, data: Any) -> dict[str, Any]:
+def write_example_files(folder: Path, text: str, data: Any) -> dict[str, Any]:
     """Every file the manifest names, from the data at its p, as its comments describe it.
 
     Records are written carriage first wherever the format allows, so that
@@ -250,7 +250,7 @@ def write_readme_files(folder: Path, text: str, data: Any) -> dict[str, Any]:
     """
     doc = tomllib.loads(text)
     labels = [out.get("label", out["name"]) for out in doc["outputs"]]
-    coh = coherence_for(data.G, data.sigma, README_AVERAGES)
+    coh = coherence_for(data.G, data.sigma, EXAMPLE_AVERAGES)
     swap = [1, 0]
     for point in doc["points"]:
         q = int(np.flatnonzero(data.p == point["p"])[0])

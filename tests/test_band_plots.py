@@ -99,17 +99,16 @@ def test_report_has_the_trust_section_and_figures(tmp_path, monkeypatch, plt):
     assert numbers["stable"] is True and numbers["covariance_rank"] == res.covariance.rank
 
 
-def test_the_readme_example_runs(monkeypatch, capsys):
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = text.split("## Trusting the model between the points", 1)[1]
-    code = section.split("```python", 1)[1].split("```", 1)[0]
+def test_the_trust_page_example_runs(monkeypatch, capsys):
+    text = (Path(__file__).resolve().parents[1] / "docs" / "trust.md").read_text()
+    code = text.split("```python", 1)[1].split("```", 1)[0]
     scope: dict = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
-        exec(compile(code, "README.md", "exec"), scope)
+        exec(compile(code, "docs/trust.md", "exec"), scope)
     assert scope["std"].shape == scope["result"].model.frf(scope["f"], scope["p"]).shape
     np.testing.assert_allclose(scope["band"], band_radius(0.95) * scope["std"])
     rep = scope["rep"]
-    assert rep.stable and rep.quadratic is True  # as the README says of the stage
+    assert rep.stable and rep.quadratic is True  # as docs/trust.md says of the stage
     assert scope["safe"].stability.stable
     assert "frozen models stable over p in" in capsys.readouterr().out

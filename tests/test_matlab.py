@@ -379,7 +379,7 @@ def test_sigma_of_the_loaded_data_follows_the_documented_formulas(tmp_path, rng,
         G, cov, coh = fields["ResponseData"], fields["CovarianceData"], fields["Coherence"]
         if source == "variance":
             sigma = np.sqrt(cov[..., 0, 0] + cov[..., 1, 1])
-        else:  # Bendat and Piersol, as the README gives it
+        else:  # Bendat and Piersol, as docs/data.md gives it
             sigma = np.abs(G) * np.sqrt((1 - coh) / (n_avg * coh))
         want.append(np.transpose(sigma, (2, 0, 1)))  # l x r x F to F x l x r
     spec = (

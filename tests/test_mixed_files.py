@@ -1,7 +1,7 @@
 """Experiments as labs have them: UFF, CSV and MATLAB files in one manifest.
 
 Every file here is written by pyuff, numpy or scipy.io (see frf_files.py),
-never by lpvid; the README's manifest is read back from files written as
+never by lpvid; the example manifest of docs/data.md is read back from files written as
 its comments describe them.
 """
 
@@ -11,14 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from frf_files import (
+    EXAMPLE_AVERAGES,
     INPUTS,
-    README_AVERAGES,
-    readme_manifest,
+    example_manifest,
     write_complex_csv,
     write_csv,
+    write_example_files,
     write_manifest,
     write_mat,
-    write_readme_files,
     write_uff,
 )
 
@@ -32,15 +32,15 @@ def gantry_data():
     return lpvid.datasets.gantry().identification
 
 
-def test_the_readme_manifest_round_trip(tmp_path, gantry_data):
-    text = readme_manifest()
-    doc = write_readme_files(tmp_path, text, gantry_data)
+def test_the_data_page_manifest_round_trip(tmp_path, gantry_data):
+    text = example_manifest()
+    doc = write_example_files(tmp_path, text, gantry_data)
     (tmp_path / "gantry.toml").write_text(text)
     loaded = lpvid.FrfData.from_files(tmp_path / "gantry.toml")
     p = [pt["p"] for pt in doc["points"]]
     data = gantry_data.subset([int(np.flatnonzero(gantry_data.p == x)[0]) for x in p])
     exts = [Path(pt.get("file") or pt["files"][0]).suffix for pt in doc["points"]]
-    assert exts == [".uff", ".uff", ".csv", ".mat"]  # the README's mix
+    assert exts == [".uff", ".uff", ".csv", ".mat"]  # the data page's mix
     np.testing.assert_array_equal(loaded.p, p)
     assert loaded.Ts == data.Ts
     np.testing.assert_allclose(loaded.freqs_hz, data.freqs_hz, rtol=5e-6)  # UFF's E13.5
@@ -58,7 +58,7 @@ def test_the_readme_manifest_round_trip(tmp_path, gantry_data):
         "tube42.mat, sys.ResponseData(1,1,:)",
     ]
     assert [pt["sigma"] for pt in loaded.provenance["points"]] == [
-        f"coherence, {README_AVERAGES} averages"
+        f"coherence, {EXAMPLE_AVERAGES} averages"
     ] * 2 + ["variance records"] * 2
 
 

@@ -1,4 +1,4 @@
-"""Every dotted name the docstrings and the README cite resolves; public names are exported."""
+"""Every dotted name that the docstrings, README and docs/*.md cite resolves; exports are public."""
 
 import ast
 import importlib
@@ -32,8 +32,9 @@ def _cited() -> dict[str, str]:
         for doc in _docstrings(path):
             for name in DOTTED.findall(doc):
                 names.setdefault(name, str(path.relative_to(ROOT)))
-    for name in DOTTED.findall((ROOT / "README.md").read_text()):
-        names.setdefault(name, "README.md")
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        for name in DOTTED.findall(page.read_text()):
+            names.setdefault(name, page.relative_to(ROOT).as_posix())
     return names
 
 

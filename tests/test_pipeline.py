@@ -97,7 +97,7 @@ def test_demo_model_is_accurate_and_simpler(demo):
     n = json.loads((out / "result.json").read_text())
     # at the noise floor: three standard deviations, sqrt(M) each (seen: 17 below)
     assert abs(n["vnls"] - n["noise_floor"]) <= 3 * np.sqrt(n["noise_floor"])
-    # the README: the chosen model validates better than the unregularised one
+    # the tutorial (docs/tutorial.md): the chosen model validates better than the unregularised one
     assert n["validation_vnls"] <= n["validation_vnls_unregularised"]
     assert n["groups_chosen"] < n["groups_smile"]
 

@@ -93,7 +93,7 @@ def test_uff_ascii_and_binary_load_the_gantry_data(tmp_path, gantry):
 
 
 def test_the_docstring_manifest_loads(tmp_path, gantry):
-    """The example of FrfData.from_files (the README's: test_mixed_files.py)."""
+    """The example of FrfData.from_files (docs/data.md's: test_mixed_files.py)."""
     doc = lpvid.FrfData.from_files.__doc__
     block = doc.split("Example::\n", 1)[1].split("\n\n        Top-level keys")[0]
     text = textwrap.dedent(block)

@@ -110,11 +110,17 @@ def _stage(stage: Path, modules: list[str], tests: list[str], pytest_args: list[
     shutil.copytree(ROOT / "tests", stage / "tests", ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("pyproject.toml", "README.md"):  # tests read the README's examples
         shutil.copy(ROOT / name, stage / name)
+    if (stage / "docs").exists():
+        shutil.rmtree(stage / "docs")
+    (stage / "docs").mkdir()
+    for page in (ROOT / "docs").glob("*.md"):  # and those of the docs pages
+        shutil.copy(page, stage / "docs" / page.name)
     lines = [
         "[mutmut]",
         "source_paths = src/lpvid",
         "also_copy =",
         "    README.md",
+        "    docs",
         "only_mutate =",
     ]
     lines += [f"    src/lpvid/{m}{'*' if m.endswith('/') else ''}" for m in modules]

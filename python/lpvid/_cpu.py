@@ -28,7 +28,7 @@ _NUMPY_NAMES = {"bmi1": "BMI", "fma": "FMA3", "cmpxchg16b": "CX16"}
 
 REBUILD = (
     'build it from source on this machine: RUSTFLAGS="-C target-cpu=native" pip install . '
-    "in lpvid's source directory (the README's Development section)"
+    "in lpvid's source directory (docs/development.md)"
 )
 
 

@@ -44,7 +44,7 @@ The data file holds FRFs measured at frozen scheduling values:
   Or a TOML manifest (.toml) listing the measured files per scheduling value:
   UFF 58 (ASCII or binary), CSV or MATLAB frd/idfrd structs, with sigma from
   coherence, variance records or a relative level (see lpvid.FrfData.from_files
-  and the README); --lines common keeps the lines all files share.
+  and docs/data.md); --lines common keeps the lines all files share.
 
 The pipeline: one LTI model per point (frequency-domain subspace + Levenberg-
 Marquardt), SMILE interpolation over the basis in every coherent form, an

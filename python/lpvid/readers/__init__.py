@@ -1,7 +1,7 @@
 """Measured FRFs from the files engineers have: UFF 58, CSV, MATLAB frd/idfrd structs.
 
 An experiment is described by a small TOML manifest (format: the docstring
-of :meth:`lpvid.FrfData.from_files`, and the README) listing, per
+of :meth:`lpvid.FrfData.from_files`, and docs/data.md) listing, per
 scheduling value, the files measured there. :func:`read_experiment` reads
 it into plain arrays; :meth:`lpvid.FrfData.from_files` makes an
 :class:`~lpvid.FrfData` of them.

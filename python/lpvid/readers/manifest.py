@@ -1,7 +1,7 @@
 """The experiment manifest: a small TOML file naming what was measured where.
 
-The format is documented in :meth:`lpvid.FrfData.from_files` and in the
-README. This module reads it into plain, checked values; it opens none of
+The format is documented in :meth:`lpvid.FrfData.from_files` and in
+docs/data.md. This module reads it into plain, checked values; it opens none of
 the data files. Every error names the manifest and the key that is wrong.
 """
 

@@ -1,6 +1,6 @@
 """FRFs in a CSV table: one row per frequency line, columns named with units.
 
-Layout (the README shows an example):
+Layout (docs/data.md shows an example):
 
 - Lines starting with ``#`` before the header are comments.
 - The header names every column as ``[LABEL] QUANTITY [UNIT]``; the first
