@@ -169,3 +169,80 @@ def test_select_on_a_problem_is_select_on_its_arguments(small):
     assert via.model.theta.tobytes() == direct.model.theta.tobytes()
     with pytest.raises(TypeError, match=r"^gammas: the problem holds these"):
         lpvid.select(problem, [2], [1], gammas=[0.1])
+
+
+# ---------------------------------------------- the functions below the pipeline
+
+
+@pytest.fixture(scope="module")
+def started(small):
+    """A problem with a fixed D and one-step l2,1 fits, and a start model for it."""
+    data, _, basis = small
+    start = lpvid.smile(lpvid.identify_lti(data, 2), basis=basis, form="observability")
+    l21 = lpvid.L21Settings(max_outer=1)
+    settings = lpvid.IdentifySettings(path=lpvid.PathSettings(l21=l21))
+    problem = lpvid.Problem(data, 2, basis, fixed={"D": True}, settings=settings)
+    return problem, start
+
+
+def test_the_fits_take_a_problem_for_its_data_mask_range_and_l21_settings(started):
+    """Rejects a Problem taken for plain data, or its mask, range or l2,1 settings dropped."""
+    problem, start = started
+    data, fixed, rng = problem.data, problem.fixed, problem.p_range
+    l21 = problem.settings.path.l21
+    a = lpvid.fit_nls(start, problem, max_iter=4, warn=False)
+    b = lpvid.fit_nls(start, data, fixed, p_range=rng, max_iter=4, warn=False)
+    assert np.array_equal(a.model.theta, b.model.theta)
+    assert np.array_equal(a.model.D, start.D)  # the problem's fixed D held
+    a = lpvid.fit_l21(start, problem, 1e-2, warn=False)
+    b = lpvid.fit_l21(start, data, 1e-2, l21, fixed, p_range=rng, warn=False)
+    assert np.array_equal(a.model.theta, b.model.theta)
+    assert a.outer_iterations == b.outer_iterations == 1  # max_outer=1 from the problem
+    a = lpvid.l21_path(start, problem, [1e-1, 1e-2], warn=False)
+    b = lpvid.l21_path(start, data, [1e-1, 1e-2], l21, fixed, p_range=rng, warn=False)
+    assert [np.array_equal(x.model.theta, y.model.theta) for x, y in zip(a, b, strict=True)] == [
+        True,
+        True,
+    ]
+
+
+def test_refit_covariance_and_stability_take_a_problem(started):
+    """Rejects a Problem's mask or range ignored by the refit, covariance or stability check."""
+    problem, start = started
+    data, fixed, rng = problem.data, problem.fixed, problem.p_range
+    fit, held = lpvid.refit(start, problem, max_iter=3, warn=False)
+    fit2, held2 = lpvid.refit(start, data, fixed, p_range=rng, max_iter=3, warn=False)
+    assert np.array_equal(fit.model.theta, fit2.model.theta)
+    assert np.array_equal(held, held2)
+    assert held[lpvid.fixed_mask(start, {"D": True})].all()  # the problem's fixed D held
+    cov = lpvid.covariance(fit.model, problem, warn=False)
+    cov2 = lpvid.covariance(fit.model, data, fixed, warn=False)
+    assert np.array_equal(cov.theta, cov2.theta) and np.array_equal(cov.free, cov2.free)
+    assert cov.n_free < start.theta.size  # D fixed: not all free
+    inner = problem.replace(p_range=[0.2, 0.8])
+    report = lpvid.stability(start, inner, quadratic=False)
+    assert report.p_range == lpvid.stability(start, [0.2, 0.8], quadratic=False).p_range
+    assert report.p_range != lpvid.stability(start, quadratic=False).p_range
+
+
+@pytest.mark.parametrize(
+    ("call", "names"),
+    [
+        (lambda p, m: lpvid.fit_nls(m, p, {"D": True}), "fixed"),
+        (lambda p, m: lpvid.fit_l21(m, p, 0.1, p_range=[0, 1]), "p_range"),
+        (
+            lambda p, m: lpvid.l21_path(m, p, [0.1], fixed={"B": True}, p_range=[0, 1]),
+            "fixed, p_range",
+        ),
+        (lambda p, m: lpvid.refit(m, p, p_range=[0, 1]), "p_range"),
+        (lambda p, m: lpvid.covariance(m, p, {"D": True}), "fixed"),
+    ],
+)
+def test_what_a_problem_holds_is_not_given_beside_it(started, call, names):
+    """Rejects an argument silently overriding (or overridden by) the Problem's own."""
+    problem, start = started
+    them = "it" if "," not in names else "them"
+    with pytest.raises(
+        TypeError, match=rf"^{names}: held by the Problem given as data; set {them} there"
+    ):
+        call(problem, start)

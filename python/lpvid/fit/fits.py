@@ -16,6 +16,7 @@ import numpy as np
 from lpvid import _core
 from lpvid._checks import flag, positive_float, real_array
 from lpvid._core import FitOutcome
+from lpvid._problemlike import fit_args, l21_settings_of
 from lpvid._spread import stop_flag
 from lpvid.data.frf import FrfData
 from lpvid.errors import ConvergenceWarning, logger
@@ -166,8 +167,10 @@ def fit_nls(
     ----------
     model : LpvModel
         Starting point; its structure (sizes, basis, Ts) is kept.
-    data : FrfData
-        The measurements.
+    data : FrfData or Problem
+        The measurements; or a :class:`lpvid.Problem`, whose data,
+        ``fixed``, ``time_data`` and ``p_range`` are then used (those
+        arguments must not be given beside it).
     fixed : optional
         Parameters kept at their starting value, as in
         :func:`lpvid.fixed_mask` (e.g. ``{"D": True}``).
@@ -215,6 +218,7 @@ def fit_nls(
         fails all the same.
     """
     settings = lm_settings(max_iter, xtol, ftol, gtol, lambda0)
+    data, fixed, time_data, p_range = fit_args(data, fixed, time_data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
     check_fit("fit_nls", model, data, free, "lm", time_data)
@@ -324,8 +328,11 @@ def fit_l21(
     ----------
     model : LpvModel
         Starting point, usually the result of :func:`fit_nls`.
-    data : FrfData
-        The measurements.
+    data : FrfData or Problem
+        The measurements; or a :class:`lpvid.Problem`, whose data,
+        ``fixed``, ``time_data`` and ``p_range`` are then used (those
+        arguments must not be given beside it), and whose path's
+        ``L21Settings`` are the default of ``settings``.
     gamma : float
         Regularisation weight, >= 0. ``gamma = 0`` is plain Levenberg-Marquardt.
     settings : L21Settings, optional
@@ -380,7 +387,8 @@ def fit_l21(
         :mod:`lpvid.fit.memory`).
     """
     g = positive_float(gamma, "gamma", allow_zero=True)
-    s = L21Settings.of(settings, **options)
+    s = L21Settings.of(l21_settings_of(data, settings), **options)
+    data, fixed, time_data, p_range = fit_args(data, fixed, time_data, p_range)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)
@@ -457,7 +465,8 @@ def l21_path(
     gs = real_array(gammas, "gammas", ndim=1)
     if gs.size == 0 or np.any(gs < 0):
         raise ValueError("gammas: needs at least one value, all >= 0")
-    s = L21Settings.of(settings, **options)
+    s = L21Settings.of(l21_settings_of(data, settings), **options)
+    data, fixed, time_data, p_range = fit_args(data, fixed, time_data, p_range)
     rng, sup = _p_range_and_sup(model, data, p_range)
     problem, floor = combined_problem(model, data, time_data)
     free, monitor = free_mask(model, fixed), _monitor(callback)

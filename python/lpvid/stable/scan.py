@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._problemlike import ProblemLike
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
 from lpvid.stable.lyapunov import LyapunovCertificate, quadratic_stability
@@ -298,9 +299,9 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
     Parameters
     ----------
     model : LpvModel
-    p_range : (lo, hi) or sequence of (lo, hi), optional
+    p_range : (lo, hi) or sequence of (lo, hi), or Problem, optional
         The range; default the model's (its basis domain). It must lie
-        inside the basis domain.
+        inside the basis domain. A :class:`lpvid.Problem`: its range.
     quadratic : bool
         Also look for a common quadratic Lyapunov function (a semidefinite
         program; needs the clarabel package, ``pip install "lpvid[lmi]"``).
@@ -326,6 +327,8 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
 
     """
     t0 = time.perf_counter()
+    if isinstance(p_range, ProblemLike):
+        p_range = p_range.p_range
     pairs = check_range(model, p_range)
     discrete = model.Ts is not None
     coef = polynomial_A(model, pairs)

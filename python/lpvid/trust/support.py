@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_float
+from lpvid._problemlike import from_problem
 from lpvid.data.frf import FrfData
 from lpvid.fit.cost import vnls
 from lpvid.fit.fits import fit_nls
@@ -76,8 +77,10 @@ def refit(
     ----------
     model : LpvModel
         Usually the result of :func:`lpvid.fit_l21`.
-    data : FrfData
-        The identification data.
+    data : FrfData or Problem
+        The identification data; or a :class:`lpvid.Problem`, whose data,
+        ``fixed``, ``p_range`` and ``time_data`` are then used (those
+        arguments must not be given beside it).
     fixed : optional
         Parameters that were fixed in the fit (as in :func:`lpvid.fixed_mask`);
         they stay fixed.
@@ -113,6 +116,12 @@ def refit(
     (0.2, 3)
 
     """
+    data, given = from_problem(
+        data, fixed=fixed, p_range=p_range, time_data=options.pop("time_data", None)
+    )
+    fixed, p_range = given["fixed"], given["p_range"]
+    if given["time_data"] is not None:
+        options["time_data"] = given["time_data"]
     free_given = ~fixed_mask(model, fixed)
     held = ~free_given | dropped_mask(model, threshold, p_range)
     start = model.with_theta(np.where(dropped_mask(model, threshold, p_range), 0.0, model.theta))

@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid import _core
 from lpvid._checks import positive_float, real_array
+from lpvid._problemlike import from_problem
 from lpvid.data.frf import FrfData, z_points
 from lpvid.errors import ConvergenceWarning
 from lpvid.fit.cost import gauss_newton
@@ -315,8 +316,9 @@ def covariance(
     ----------
     model : LpvModel
         The fitted model.
-    data : FrfData
-        The data it was fitted to.
+    data : FrfData or Problem
+        The data it was fitted to; or a :class:`lpvid.Problem`, whose data
+        and ``fixed`` are then used (``fixed`` must not be given beside it).
     fixed : optional
         Parameters that were kept fixed (as in :func:`lpvid.fixed_mask`):
         they have no spread.
@@ -343,6 +345,8 @@ def covariance(
     3
 
     """
+    data, given = from_problem(data, fixed=fixed)
+    fixed = given["fixed"]
     free = ~fixed_mask(model, fixed)
     check_covariance(model, data, free)
     v, _, jtj = gauss_newton(model, data, fixed)
