@@ -125,6 +125,20 @@ fn from_panic(payload: &(dyn std::any::Any + Send)) -> Error {
     Error::Internal(message)
 }
 
+/// A size in bytes for people: `1.25 GB`, `340 MB`, `12 kB`.
+pub fn human(bytes: usize) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.2} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else if b >= 1e3 {
+        format!("{:.0} kB", b / 1e3)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -150,19 +164,5 @@ mod tests {
             "{e:?}"
         );
         assert_eq!(catch_panic(|| Ok(3)), Ok(3));
-    }
-}
-
-/// A size in bytes for people: `1.25 GB`, `340 MB`, `12 kB`.
-pub fn human(bytes: usize) -> String {
-    let b = bytes as f64;
-    if b >= 1e9 {
-        format!("{:.2} GB", b / 1e9)
-    } else if b >= 1e6 {
-        format!("{:.0} MB", b / 1e6)
-    } else if b >= 1e3 {
-        format!("{:.0} kB", b / 1e3)
-    } else {
-        format!("{bytes} bytes")
     }
 }
