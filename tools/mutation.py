@@ -41,7 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The fast test files that exercise each Python module (relative to python/lpvid).
 PY_TESTS = {
-    "trust/covariance.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
+    "trust/covariance.py": [
+        "tests/test_covariance.py",
+        "tests/test_nextpoints.py",
+        "tests/test_covariance_parts.py",
+    ],
     "trust/design.py": ["tests/test_nextpoints.py"],
     "trust/nextpoints.py": ["tests/test_nextpoints.py"],
     "trust/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
