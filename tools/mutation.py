@@ -46,7 +46,7 @@ PY_TESTS = {
         "tests/test_nextpoints.py",
         "tests/test_covariance_parts.py",
     ],
-    "trust/design.py": ["tests/test_nextpoints.py"],
+    "trust/design.py": ["tests/test_nextpoints.py", "tests/test_design.py"],
     "trust/nextpoints.py": ["tests/test_nextpoints.py", "tests/test_nextpoints_parts.py"],
     "trust/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
     "trust/lyapunov.py": ["tests/test_stability.py", "tests/test_lyapunov.py"],
