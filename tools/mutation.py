@@ -50,7 +50,11 @@ PY_TESTS = {
     "trust/nextpoints.py": ["tests/test_nextpoints.py", "tests/test_nextpoints_parts.py"],
     "trust/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
     "trust/lyapunov.py": ["tests/test_stability.py", "tests/test_lyapunov.py"],
-    "trust/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
+    "trust/ranges.py": [
+        "tests/test_stability.py",
+        "tests/test_stable_fit.py",
+        "tests/test_ranges.py",
+    ],
     "trust/refit.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
     "trust/stability.py": [
         "tests/test_stability.py",
