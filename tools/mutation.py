@@ -61,7 +61,7 @@ PY_TESTS = {
         "tests/test_stable_fit.py",
         "tests/test_stability_parts.py",
     ],
-    "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
+    "trust/steps.py": ["tests/test_stable_fit.py", "tests/test_steps.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
     "selection.py": ["tests/test_select_rules.py", "tests/test_select.py"],
     "selected.py": ["tests/test_select_rules.py", "tests/test_select.py"],
