@@ -41,19 +41,27 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: The fast test files that exercise each Python module (relative to python/lpvid).
 PY_TESTS = {
-    "trust/uncertainty.py": ["tests/test_covariance.py", "tests/test_nextpoints.py"],
-    "experiment/design.py": ["tests/test_nextpoints.py"],
-    "experiment/nextpoints.py": ["tests/test_nextpoints.py"],
+    "trust/uncertainty.py": [
+        "tests/test_covariance.py",
+        "tests/test_nextpoints.py",
+        "tests/test_covariance_parts.py",
+    ],
+    "experiment/design.py": ["tests/test_nextpoints.py", "tests/test_design.py"],
+    "experiment/nextpoints.py": ["tests/test_nextpoints.py", "tests/test_nextpoints_parts.py"],
     "stable/enforce.py": ["tests/test_stable_fit.py", "tests/test_enforce.py"],
     "stable/lyapunov.py": ["tests/test_stability.py", "tests/test_lyapunov.py"],
-    "stable/ranges.py": ["tests/test_stability.py", "tests/test_stable_fit.py"],
+    "stable/ranges.py": [
+        "tests/test_stability.py",
+        "tests/test_stable_fit.py",
+        "tests/test_ranges.py",
+    ],
     "trust/support.py": ["tests/test_stable_fit.py", "tests/test_pipeline.py"],
     "stable/scan.py": [
         "tests/test_stability.py",
         "tests/test_stable_fit.py",
         "tests/test_stability_parts.py",
     ],
-    "trust/steps.py": ["tests/test_pipeline.py", "tests/test_stable_fit.py"],
+    "trust/steps.py": ["tests/test_stable_fit.py", "tests/test_steps.py"],
     "trust/__init__.py": ["tests/test_stability.py"],
     "selection/grid.py": ["tests/test_select_rules.py", "tests/test_select_parts.py"],
     "selection/result.py": ["tests/test_select_rules.py"],
