@@ -19,10 +19,11 @@ directory (mutmut names mutants after the path and strips only ``src/``, so
 ``--stage DIR`` keeps it, and ``--stage DIR --recheck`` runs only its
 survivors again against the current tests (after writing tests for them).
 Rust mutants are built and tested by cargo-mutants in its own copy of the
-tree with the test profile (opt-level 1, the dependencies optimised): the
-first build there compiles the dependencies (about 10 minutes on two
-cores), then each mutant takes a few seconds of building. Runs are long on two cores: one module at
-a time, under ``nice``.
+tree with the test profile (opt-level 1, the dependencies optimised, no
+debug information): the first build there compiles the dependencies (about
+8 minutes on two cores), then each mutant takes a few seconds of
+building. Runs are long on two cores: one module at a time, under
+``nice``.
 """
 
 from __future__ import annotations
@@ -251,7 +252,14 @@ def run_rust(args: argparse.Namespace) -> int:
         cmd += ["--file", f]
     cmd += ["--", *extra]
     print(" ".join(cmd), flush=True)
-    env = dict(os.environ, CARGO_TERM_COLOR="never")
+    # Without debug information: the baseline build (dependencies included)
+    # 22 -> 8 minutes on two cores, each mutant's build 25 s -> 2-10 s.
+    env = dict(
+        os.environ,
+        CARGO_TERM_COLOR="never",
+        CARGO_PROFILE_DEV_DEBUG="0",
+        CARGO_PROFILE_TEST_DEBUG="0",
+    )
     code = subprocess.run(cmd, cwd=ROOT, env=env).returncode
     found = rust_results(out)
     viable = len(found["caught"]) + len(found["missed"]) + len(found["timeout"])
