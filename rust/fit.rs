@@ -231,7 +231,8 @@ pub(crate) fn norm(v: &[f64]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::Stop;
+    use super::{seconds_since, Damping, Fit, Iteration, StepKind, Stop};
+    use std::time::{Duration, Instant};
 
     const ALL: [Stop; 9] = [
         Stop::StepSize,
@@ -268,5 +269,99 @@ mod tests {
             let says = m.starts_with("converged") || m.starts_with("nothing to fit");
             assert_eq!(says, stop.converged(), "{stop:?}: {m:?}");
         }
+    }
+
+    fn step(kind: StepKind, seconds: f64, accepted: bool) -> Iteration {
+        Iteration {
+            kind,
+            outer: 0,
+            vnls: 1.0,
+            objective: 1.0,
+            step_norm: 0.1,
+            lambda: 1e-2,
+            accepted,
+            gain_ratio: 0.5,
+            status: "solved".to_string(),
+            solver_iterations: 0,
+            seconds,
+        }
+    }
+
+    /// The mean is over the steps of the kind asked for only; none: NaN.
+    #[test]
+    fn mean_seconds_per_kind_and_rejected_steps() {
+        let fit = Fit {
+            theta: vec![],
+            vnls: 1.0,
+            objective: 1.0,
+            history: vec![
+                step(StepKind::Lm, 1.0, true),
+                step(StepKind::Socp, 10.0, false),
+                step(StepKind::Lm, 4.0, false),
+                step(StepKind::Socp, 20.0, false),
+                step(StepKind::Socp, 60.0, true),
+            ],
+            stop: Stop::StepSize,
+            weights: vec![],
+            outer_iterations: 1,
+            total_seconds: 95.0,
+        };
+        assert_eq!(fit.mean_seconds(StepKind::Lm), 2.5);
+        assert_eq!(fit.mean_seconds(StepKind::Socp), 30.0);
+        assert_eq!(fit.rejected(), 3);
+        let lm_only = Fit {
+            history: fit.history[..1].to_vec(),
+            ..fit
+        };
+        assert!(lm_only.mean_seconds(StepKind::Socp).is_nan());
+        assert_eq!(lm_only.rejected(), 0);
+    }
+
+    /// Nielsen's rule: after a step with gain ratio rho > 0 the damping is
+    /// multiplied by max(1/3, 1 - (2 rho - 1)^3) (floored at 1e-12) and the
+    /// growth factor resets to 2; after a rejected step (rho <= 0, or not
+    /// finite) it is multiplied by the growth factor, which doubles.
+    #[test]
+    fn damping_follows_nielsens_rule() {
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-14 * b.abs();
+        let mut d = Damping::new(0.1);
+        assert!(close(d.mu, 0.01) && close(d.lambda(), 0.1));
+        d.update(0.75); // 1 - 0.5^3 = 0.875
+        assert!(close(d.mu, 0.00875), "{}", d.mu);
+        d.update(1.0); // 1 - 1 = 0: the floor 1/3
+        assert!(close(d.mu, 0.00875 / 3.0), "{}", d.mu);
+        let before = d.mu;
+        for (rho, factor) in [
+            (0.0, 2.0),
+            (-1.0, 4.0),
+            (f64::INFINITY, 8.0),
+            (f64::NAN, 16.0),
+        ] {
+            let mu = d.mu;
+            d.update(rho);
+            assert_eq!(d.mu, mu * factor, "rho = {rho}");
+        }
+        assert_eq!(d.mu, before * 1024.0);
+        d.update(0.5); // f = 1: the damping stays, the growth factor resets to 2
+        assert_eq!(d.mu, before * 1024.0);
+        let mu = d.mu;
+        d.update(-1.0);
+        assert_eq!(d.mu, 2.0 * mu);
+        let mut tiny = Damping::new(1e-7);
+        tiny.update(1.0);
+        assert_eq!(tiny.mu, 1e-12);
+        assert!(!tiny.exhausted());
+        let mut big = Damping::new(1e8);
+        assert!(big.exhausted());
+        big.mu = f64::NAN;
+        assert!(big.exhausted());
+    }
+
+    #[test]
+    fn seconds_since_measures_the_time_since() {
+        let t0 = Instant::now();
+        std::thread::sleep(Duration::from_millis(20));
+        let s = seconds_since(t0);
+        assert!((0.019..0.9).contains(&s), "{s}");
     }
 }

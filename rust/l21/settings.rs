@@ -104,3 +104,69 @@ impl L21Settings {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::L21Settings;
+    use crate::error::Error;
+
+    /// The name of the field `validate` refuses after `change`, if any.
+    fn refused(change: impl Fn(&mut L21Settings)) -> Option<&'static str> {
+        let mut s = L21Settings::default();
+        change(&mut s);
+        match s.validate() {
+            Ok(()) => None,
+            Err(Error::InvalidArgument { name, .. }) => Some(name),
+            Err(e) => panic!("not an argument error: {e:?}"),
+        }
+    }
+
+    type Field = fn(&mut L21Settings) -> &mut f64;
+
+    #[test]
+    fn fields_that_may_be_zero_refuse_negative_and_non_finite_values() {
+        let fields: [(&str, Field); 6] = [
+            ("gamma", |s| &mut s.gamma),
+            ("dtheta_min", |s| &mut s.dtheta_min),
+            ("dphi_min", |s| &mut s.dphi_min),
+            ("dvnls_min", |s| &mut s.dvnls_min),
+            ("threshold", |s| &mut s.threshold),
+            ("ftol", |s| &mut s.ftol),
+        ];
+        assert_eq!(refused(|_| ()), None);
+        for (name, field) in fields {
+            assert_eq!(refused(|s| *field(s) = 0.0), None, "{name} = 0");
+            for bad in [-1e-300, f64::NAN, f64::INFINITY] {
+                assert_eq!(refused(|s| *field(s) = bad), Some(name), "{name} = {bad}");
+            }
+        }
+    }
+
+    #[test]
+    fn fields_that_must_be_positive_refuse_zero() {
+        let fields: [(&str, Field); 3] = [
+            ("eps", |s| &mut s.eps),
+            ("lambda0", |s| &mut s.lambda0),
+            ("cone_tol", |s| &mut s.cone_tol),
+        ];
+        for (name, field) in fields {
+            assert_eq!(refused(|s| *field(s) = 1e-300), None, "{name} = 1e-300");
+            for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+                assert_eq!(refused(|s| *field(s) = bad), Some(name), "{name} = {bad}");
+            }
+        }
+    }
+
+    #[test]
+    fn iteration_limits_are_at_least_one() {
+        assert_eq!(refused(|s| s.max_outer = 0), Some("max_outer"));
+        assert_eq!(refused(|s| s.max_inner = 0), Some("max_outer"));
+        assert_eq!(
+            refused(|s| {
+                s.max_outer = 1;
+                s.max_inner = 1
+            }),
+            None
+        );
+    }
+}
