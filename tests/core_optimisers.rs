@@ -5,7 +5,7 @@
 //! (`l21.rs`) on data from a model with known zero groups.
 
 use lpvid::l21::cone_groups;
-use lpvid::socp::{ConeGroup, ConeProblem, ConeSolver};
+use lpvid::socp::{ConeGroup, ConeProblem, ConeSolver, Lookahead};
 use lpvid::testing::Lcg;
 use lpvid::{
     fit_l21, frequency_response, levenberg_marquardt, Error, FreeSet, FrfData, GaussNewton,
@@ -209,16 +209,27 @@ fn soft_threshold(c: &[f64], a: f64, lambda: f64) -> Vec<f64> {
     c.iter().map(|x| keep * x).collect()
 }
 
-/// A cone step whose reduced quadratic is `a_g I` on every group: the free
-/// parameters are three groups (positions 0-1, 2-4, 5) and two ungrouped
-/// ones (6, 7), coupled to the groups through `coupling`.
-/// Returns the step, its closed form and the number of groups that the
-/// closed form removes (`theta_g + d_g = 0`).
-fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
+/// The pieces of a cone step whose reduced quadratic is `a_g I` on every
+/// group: the free parameters are three groups (positions 0-1, 2-4, 5) and
+/// two ungrouped ones (6, 7), coupled to the groups through `coupling`.
+struct ConeCase {
+    gn: GaussNewton,
+    diag: Vec<f64>,
+    theta: Vec<f64>,
+    groups: Vec<ConeGroup>,
+    q: DVector<f64>,
+    w: DMatrix<f64>,
+}
+
+const CASE_GROUPS: [&[usize]; 3] = [&[0, 1], &[2, 3, 4], &[5]];
+const CASE_A: [f64; 3] = [1.5, 0.8, 2.0];
+const CASE_M: f64 = 10.0;
+const CASE_GAMMA: f64 = 0.3;
+const CASE_PHI: [f64; 3] = [1.0, 4.0, 0.5];
+const CASE_VARPHI: [f64; 3] = [1.0, 0.5, 3.0];
+
+fn cone_setup(coupling: f64, mu: f64, seed: u64) -> ConeCase {
     let mut rng = Lcg(seed);
-    let m_res = 10.0;
-    let groups_at: [&[usize]; 3] = [&[0, 1], &[2, 3, 4], &[5]];
-    let a = [1.5, 0.8, 2.0];
     let (nk, nu) = (6, 2);
     let nf = nk + nu;
     // P = (2/M)(H + mu D) with P_UU = I, P_GU = W, P_GG = diag(a_g) + W W^T:
@@ -226,9 +237,9 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
     let w = DMatrix::from_fn(nk, nu, |_, _| coupling * rng.next_f64());
     let mut p = DMatrix::zeros(nf, nf);
     let mut a_of = vec![0.0; nk];
-    for (g, at) in groups_at.iter().enumerate() {
+    for (g, at) in CASE_GROUPS.iter().enumerate() {
         for &i in *at {
-            a_of[i] = a[g];
+            a_of[i] = CASE_A[g];
         }
     }
     let p_gg = DMatrix::from_diagonal(&DVector::from_vec(a_of)) + &w * w.transpose();
@@ -239,34 +250,56 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
     // H = (M/2) P - mu D with the Marquardt diagonal D = 1 (any D works
     // that keeps H's structure; the step sees only H + mu D).
     let diag = vec![1.0; nf];
-    let gram = &p * (m_res / 2.0) - DMatrix::identity(nf, nf) * mu;
+    let gram = &p * (CASE_M / 2.0) - DMatrix::identity(nf, nf) * mu;
     let q = DVector::from_fn(nf, |_, _| rng.next_f64());
     let gn = GaussNewton {
         vnls: 1.0,
-        gradient: (&q * m_res).as_slice().to_vec(),
+        gradient: (&q * CASE_M).as_slice().to_vec(),
         gram: gram.as_slice().to_vec(),
     };
     let theta: Vec<f64> = (0..nf).map(|_| rng.next_f64()).collect();
-    let (gamma, phi, varphi) = (0.3, [1.0, 4.0, 0.5], [1.0, 0.5, 3.0]);
-    let groups: Vec<ConeGroup> = groups_at
+    let groups: Vec<ConeGroup> = CASE_GROUPS
         .iter()
         .enumerate()
         .map(|(g, at)| ConeGroup {
             entries: at.iter().map(|&i| (i, Some(i))).collect(),
-            phi: phi[g],
-            varphi: varphi[g],
+            phi: CASE_PHI[g],
+            varphi: CASE_VARPHI[g],
         })
         .collect();
-    let cone = ConeProblem {
-        gn: &gn,
-        diag: &diag,
-        theta: &theta,
-        groups: &groups,
-        gamma,
-        n_residuals: m_res,
-        pinned: None,
-    };
-    let step = cone
+    ConeCase {
+        gn,
+        diag,
+        theta,
+        groups,
+        q,
+        w,
+    }
+}
+
+impl ConeCase {
+    fn cone(&self) -> ConeProblem<'_> {
+        ConeProblem {
+            gn: &self.gn,
+            diag: &self.diag,
+            theta: &self.theta,
+            groups: &self.groups,
+            gamma: CASE_GAMMA,
+            n_residuals: CASE_M,
+            pinned: None,
+        }
+    }
+}
+
+/// The step of [`cone_setup`], its closed form and the number of groups
+/// that the closed form removes (`theta_g + d_g = 0`).
+fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
+    let case = cone_setup(coupling, mu, seed);
+    let (nk, nu) = (6, 2);
+    let nf = nk + nu;
+    let (q, w, theta) = (&case.q, &case.w, &case.theta);
+    let step = case
+        .cone()
         .solve(mu, &mut ConeSolver::new(1e-10))
         .expect("memory")
         .step
@@ -274,13 +307,13 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
     // Closed form: eliminate the ungrouped part, d_U = -(q_U + W^T d_G);
     // the reduced linear term is q_G - W q_U, and per group
     // v_g = theta_g + d_g = soft_threshold(theta_g - q~_g / a_g).
-    let q_g = q.rows(0, nk) - &w * q.rows(nk, nu);
+    let q_g = q.rows(0, nk) - w * q.rows(nk, nu);
     let mut want = vec![0.0; nf];
     let mut removed = 0;
-    for (g, at) in groups_at.iter().enumerate() {
-        let c: Vec<f64> = at.iter().map(|&i| theta[i] - q_g[i] / a[g]).collect();
-        let lambda = gamma * phi[g] * varphi[g];
-        let v = soft_threshold(&c, a[g], lambda);
+    for (g, at) in CASE_GROUPS.iter().enumerate() {
+        let c: Vec<f64> = at.iter().map(|&i| theta[i] - q_g[i] / CASE_A[g]).collect();
+        let lambda = CASE_GAMMA * CASE_PHI[g] * CASE_VARPHI[g];
+        let v = soft_threshold(&c, CASE_A[g], lambda);
         removed += usize::from(v.iter().all(|&x| x == 0.0));
         for (&i, v) in at.iter().zip(v) {
             want[i] = v - theta[i];
@@ -290,6 +323,34 @@ fn cone_case(coupling: f64, mu: f64, seed: u64) -> (Vec<f64>, Vec<f64>, usize) {
     let d_u = -(q.rows(nk, nu) + w.transpose() * d_g);
     want[nk..].copy_from_slice(d_u.as_slice());
     (step, want, removed)
+}
+
+/// A step solved ahead is the step a solver gives for its damping, used
+/// only for that damping and never after `forget` (a new point).
+#[test]
+fn lookahead_steps_are_those_solved_one_after_the_other() {
+    let (a, b) = (cone_setup(0.7, 0.0, 3), cone_setup(0.7, 0.0, 4));
+    let fresh = |case: &ConeCase, mu: f64| {
+        let solved = case.cone().solve(mu, &mut ConeSolver::new(1e-10)).unwrap();
+        solved.step.expect("solved")
+    };
+    let (mu, next) = (0.25, 1.0);
+    let mut ahead = Lookahead::new(1e-10);
+    let first = ahead.solve(&a.cone(), mu, Some(next)).unwrap();
+    assert_eq!(first.step.unwrap(), fresh(&a, mu));
+    // The rejection's step, as solved ahead.
+    let second = ahead.solve(&a.cone(), next, None).unwrap();
+    assert_eq!(second.step.unwrap(), fresh(&a, next));
+    // Solved ahead again, then the point changes: the step at the new point.
+    ahead.solve(&a.cone(), mu, Some(next)).unwrap();
+    ahead.forget();
+    let moved = ahead.solve(&b.cone(), next, None).unwrap();
+    assert_eq!(moved.step.unwrap(), fresh(&b, next));
+    assert_ne!(fresh(&a, next), fresh(&b, next));
+    // Solved ahead for one damping, asked for another: solved anew.
+    ahead.solve(&a.cone(), mu, Some(next)).unwrap();
+    let other = ahead.solve(&a.cone(), 0.5, None).unwrap();
+    assert_eq!(other.step.unwrap(), fresh(&a, 0.5));
 }
 
 #[test]

@@ -60,3 +60,45 @@ impl ConeGroup {
         self.entries.iter().filter_map(|e| e.1)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ConeGroup;
+
+    /// Entries 0 and 3 free (positions 1 and 0 among the free parameters),
+    /// entry 2 fixed.
+    fn group() -> ConeGroup {
+        ConeGroup {
+            entries: vec![(0, Some(1)), (2, None), (3, Some(0))],
+            phi: 2.0,
+            varphi: 0.5,
+        }
+    }
+
+    #[test]
+    fn norms_before_and_after_a_step_over_the_free_parameters() {
+        let g = group();
+        let theta = [3.0, 100.0, 4.0, 12.0];
+        assert_eq!(g.norm_at(&theta), 13.0); // sqrt(9 + 16 + 144)
+                                             // d moves entry 3 by -12 (position 0) and entry 0 by -3 (position 1):
+                                             // only the fixed entry 2 is left.
+        assert_eq!(g.norm_after(&theta, &[-12.0, -3.0]), 4.0);
+        assert_eq!(g.norm_after(&theta, &[0.0, 0.0]), 13.0);
+        assert_eq!(g.free_norm(&[3.0, 4.0, 100.0]), 5.0);
+        assert_eq!(g.free_positions().collect::<Vec<_>>(), vec![1, 0]);
+    }
+
+    #[test]
+    fn active_when_an_entry_is_free_and_vanishing_when_every_fixed_one_is_zero() {
+        let g = group();
+        assert!(g.is_active());
+        assert!(!g.can_vanish(&[3.0, 0.0, 4.0, 12.0]));
+        assert!(g.can_vanish(&[3.0, 7.0, 0.0, 12.0]));
+        let fixed = ConeGroup {
+            entries: vec![(0, None), (1, None)],
+            ..group()
+        };
+        assert!(!fixed.is_active());
+        assert!(fixed.can_vanish(&[0.0, 0.0]) && !fixed.can_vanish(&[0.0, 1.0]));
+    }
+}
