@@ -19,6 +19,8 @@ use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, P
 use std::time::Instant;
 
 mod settings;
+#[cfg(test)]
+mod tests;
 
 pub use settings::{L21Settings, Weighting};
 
@@ -198,10 +200,7 @@ pub fn fit_l21(
         // Once the groups in use and the fit have settled, further outer
         // iterations only slide along similarity transforms that trade the
         // size of the penalised groups for that of the constant parts.
-        let magnitudes: Vec<f64> = groups
-            .iter()
-            .map(|g| g.varphi * g.norm_at(&theta))
-            .collect();
+        let magnitudes: Vec<f64> = groups.iter().map(|g| g.magnitude(&theta)).collect();
         let response = problem.response(&theta)?;
         if let Some((prev_mag, prev_v, prev_response)) = &prev_state {
             let moved: f64 = response

@@ -22,6 +22,12 @@ impl ConeGroup {
             .sqrt()
     }
 
+    /// The relative magnitude `varphi || theta_g ||` of (23) and (25): the
+    /// size that is compared with the threshold of a group in use.
+    pub fn magnitude(&self, theta: &[f64]) -> f64 {
+        self.varphi * self.norm_at(theta)
+    }
+
     /// `|| theta_g + d_g ||` for a step over the free parameters.
     pub fn norm_after(&self, theta: &[f64], d: &[f64]) -> f64 {
         self.entries
@@ -79,9 +85,11 @@ mod tests {
     fn norms_before_and_after_a_step_over_the_free_parameters() {
         let g = group();
         let theta = [3.0, 100.0, 4.0, 12.0];
-        assert_eq!(g.norm_at(&theta), 13.0); // sqrt(9 + 16 + 144)
-                                             // d moves entry 3 by -12 (position 0) and entry 0 by -3 (position 1):
-                                             // only the fixed entry 2 is left.
+        // sqrt(9 + 16 + 144); the magnitude scales it by varphi.
+        assert_eq!(g.norm_at(&theta), 13.0);
+        assert_eq!(g.magnitude(&theta), 6.5);
+        // d moves entry 3 by -12 (position 0) and entry 0 by -3 (position 1):
+        // only the fixed entry 2 is left.
         assert_eq!(g.norm_after(&theta, &[-12.0, -3.0]), 4.0);
         assert_eq!(g.norm_after(&theta, &[0.0, 0.0]), 13.0);
         assert_eq!(g.free_norm(&[3.0, 4.0, 100.0]), 5.0);
