@@ -506,3 +506,62 @@ fn a_pinned_direction_adds_its_curvature_to_the_step() {
     // Without the curvature the conditions fail: the pin moved the step.
     assert!(c.violation(&d, None, 1.0) > 1e-3);
 }
+
+// ------------------------------------------------------------ failures
+
+#[test]
+fn a_zero_diagonal_or_an_indefinite_ungrouped_block_is_a_failed_step() {
+    // No curvature at all on parameter 1 and no damping: no Jacobi scale.
+    let mut p = DMatrix::identity(3, 3);
+    p[(1, 1)] = 0.0;
+    let flat = case(
+        p,
+        DVector::from_element(3, 0.1),
+        0.0,
+        vec![1.0; 3],
+        vec![group(&[0], 1.0, 1.0)],
+        0.1,
+        2.0,
+    );
+    let s = flat.solve();
+    assert!(s.step.is_none());
+    assert_eq!(s.status, "the quadratic has a zero or non-finite diagonal");
+    assert_eq!((s.solves, s.iterations, s.zeroed), (0, 0, 0));
+    // The ungrouped parameters 1 and 2 with P_UU = [[1, 2], [2, 1]].
+    let mut p = DMatrix::identity(3, 3);
+    p[(1, 2)] = 2.0;
+    p[(2, 1)] = 2.0;
+    let saddle = case(
+        p,
+        DVector::from_element(3, 0.1),
+        0.0,
+        vec![1.0; 3],
+        vec![group(&[0], 1.0, 1.0)],
+        0.1,
+        2.0,
+    );
+    let s = saddle.solve();
+    assert!(s.step.is_none());
+    assert_eq!(s.status, "the quadratic is not positive definite");
+}
+
+#[test]
+fn a_group_with_no_free_entry_is_left_out_of_the_program() {
+    // Group (8, 9) is fixed entirely (theta has two more entries): it adds
+    // a constant to the penalty and nothing to the step or the counts.
+    let c = several(2, 0.2, 1.0);
+    let mut fixed = Case {
+        theta: c.theta.iter().copied().chain([0.5, -0.5]).collect(),
+        ..several(2, 0.2, 1.0)
+    };
+    fixed.groups.push(ConeGroup {
+        entries: vec![(8, None), (9, None)],
+        phi: 1.0,
+        varphi: 2.0,
+    });
+    let (s, t) = (c.solve(), fixed.solve());
+    assert_eq!(s.step, t.step);
+    assert_eq!((s.zeroed, s.solves), (t.zeroed, t.solves));
+    let extra = 0.2 * 2.0 * 0.5f64.hypot(0.5);
+    assert!((fixed.cone().penalty(None) - c.cone().penalty(None) - extra).abs() < 1e-14);
+}
