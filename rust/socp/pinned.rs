@@ -311,6 +311,19 @@ mod tests {
         assert_eq!((empty.nrows(), empty.ncols()), (3, 0));
         let no_rows = orthonormal(Mat::<f64>::zeros(0, 2).as_ref(), 1.0).unwrap();
         assert_eq!((no_rows.nrows(), no_rows.ncols()), (0, 0));
+        // A second direction at eps/2 of the largest singular value is
+        // dropped below RANK_TOL and kept above it, at any magnitude.
+        for size in [1.0, 1e3] {
+            for (eps, kept) in [(1e-10, 1), (1e-8, 2)] {
+                let m = Mat::from_fn(3, 2, |i, c| match (i, c) {
+                    (0, _) => size,
+                    (1, 1) => size * eps,
+                    _ => 0.0,
+                });
+                let got = orthonormal(m.as_ref(), 0.0).unwrap().ncols();
+                assert_eq!(got, kept, "size {size}, eps {eps}");
+            }
+        }
         // Full rank: every column kept, orthonormal.
         let full = orthonormal(filled(4, 3, 0.2).as_ref(), 0.0).unwrap();
         assert_eq!(full.ncols(), 3);

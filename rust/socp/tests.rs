@@ -405,19 +405,36 @@ fn steps_with_open_groups_meet_the_optimality_conditions() {
     assert!(zeroed > 0 && zeroed < 36, "{zeroed} of 36 groups at zero");
 }
 
+/// `||G_g||` of group 0 at the step solved with it at zero (and the
+/// others open), by nalgebra.
+fn cone_gradient_norm_after_first_round(c: &Case) -> f64 {
+    let cone = c.cone();
+    let scale = cone.jacobi_scale(c.mu);
+    let zero = [true, false, false];
+    let mut solver = ConeSolver::new(1e-10);
+    let r = cone
+        .solve_with(c.mu, &zero, &scale, None, &mut solver)
+        .unwrap();
+    let g = c.gradient(&r.step.unwrap(), None);
+    g[0].hypot(g[1])
+}
+
 #[test]
 fn a_resting_group_the_solution_needs_is_put_back() {
-    // Group (0, 1) at zero, its gradient far over its bound.
+    // Group (0, 1) at zero, its gradient over its bound 0.05 (by less
+    // than 1: the check scales the bound, it does not shift it).
     let mut c = several(5, 0.05, 1.0);
     c.theta[0] = 0.0;
     c.theta[1] = 0.0;
-    c.q[0] = 2.0;
-    c.gn.gradient[0] = 2.0 * c.m;
+    c.q[0] = 0.4;
+    c.gn.gradient[0] = 0.4 * c.m;
     let s = c.solve();
     assert_eq!(s.solves, 2, "{s:?}");
     let d = s.step.unwrap();
     assert_optimal(&c, &d, None, 1.0);
-    assert!(c.groups[0].norm_after(&c.theta, &d) > 0.1);
+    assert!(c.groups[0].norm_after(&c.theta, &d) > 0.01);
+    let first = cone_gradient_norm_after_first_round(&c);
+    assert!(first > 0.05 * (1.0 + 1e-9) && first < 1.05, "{first}");
     assert_eq!(s.zeroed, 0);
     // Iterations are the two rounds' together: first with the group at
     // zero, then with it back.
