@@ -77,9 +77,12 @@ fn a_solver_is_reused_for_the_same_pattern_and_gives_a_new_ones_answer() {
     }
 }
 
+/// One change of a program's pattern.
+type Change = fn(&mut Program);
+
 #[test]
 fn a_program_that_differs_in_one_part_of_its_key_gets_a_new_solver() {
-    let variants: [(&str, fn(&mut Program)); 5] = [
+    let variants: [(&str, Change); 5] = [
         // e1 loses its curvature (an explicit zero at (1, 2) instead).
         ("P's columns", |p| {
             p.p.colptr = vec![0, 1, 1, 2, 2];
