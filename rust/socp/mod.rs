@@ -485,3 +485,6 @@ impl ConeStep {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

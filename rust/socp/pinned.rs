@@ -219,4 +219,120 @@ mod tests {
         .basis(&[1.0, f64::NAN, 1.0, 1.0, 1.0])
         .is_none());
     }
+    #[test]
+    fn one_direction_by_hand_at_a_new_scale() {
+        // dirs = d (one column), no exempt, scale0 = s0: V = (d/s0)/||d/s0||
+        // and u = V/s0, so weight (S u)(S u)^T has entries
+        // weight s_i s_j d_i d_j / (s0_i^2 s0_j^2 ||d/s0||^2) (the sign of
+        // the SVD's column cancels).
+        let d = [1.0, -2.0, 0.5];
+        let s0 = [2.0, 0.5, 1.0];
+        let weight = 3.0;
+        let pinned = Pinned {
+            dirs: Mat::from_fn(3, 1, |i, _| d[i]),
+            exempt: Mat::zeros(3, 0),
+            weight,
+        };
+        let basis = pinned.basis(&s0).expect("one direction");
+        assert_eq!(basis.u.ncols(), 1);
+        let n2: f64 = (0..3).map(|i| (d[i] / s0[i]).powi(2)).sum();
+        let s = [0.3, 1.5, 0.8];
+        let c = basis.scaled_curvature(&s).unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                let want =
+                    weight * s[i] * s[j] * d[i] * d[j] / (s0[i] * s0[i] * s0[j] * s0[j] * n2);
+                assert!((c[(i, j)] - want).abs() <= 1e-14 * want.abs(), "{i} {j}");
+            }
+        }
+        // The gradient at a step x: weight u (u . x), u = d / (s0^2 ||d/s0||).
+        let x = [0.7, 0.2, -1.1];
+        let u: Vec<f64> = (0..3).map(|i| d[i] / (s0[i] * s0[i] * n2.sqrt())).collect();
+        let dot: f64 = (0..3).map(|i| u[i] * x[i]).sum();
+        let mut grad = vec![1.0, -1.0, 2.0];
+        basis.add_gradient(&x, &mut grad);
+        for i in 0..3 {
+            let want = [1.0, -1.0, 2.0][i] + weight * u[i] * dot;
+            assert!(
+                (grad[i] - want).abs() <= 1e-14 * want.abs().max(1.0),
+                "{grad:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn each_refusal_of_a_basis_alone() {
+        let nf = 4;
+        let good = Pinned {
+            dirs: filled(nf, 2, 0.9),
+            exempt: filled(nf, 1, 1.7),
+            weight: 1.0,
+        };
+        let scale0 = vec![1.0; nf];
+        assert!(good.basis(&scale0).is_some());
+        let short_dirs = Pinned {
+            dirs: filled(nf - 1, 2, 0.9),
+            ..good.clone()
+        };
+        assert!(short_dirs.basis(&scale0).is_none());
+        let short_exempt = Pinned {
+            exempt: filled(nf + 1, 1, 1.7),
+            ..good.clone()
+        };
+        assert!(short_exempt.basis(&scale0).is_none());
+        for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+            let mut s = scale0.clone();
+            s[2] = bad;
+            assert!(good.basis(&s).is_none(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn repeated_directions_count_once() {
+        // Two equal columns and a third that is their double: rank one,
+        // the rounding of the SVD is not a direction.
+        let nf = 5;
+        let one = filled(nf, 1, 0.3);
+        let pinned = Pinned {
+            dirs: Mat::from_fn(nf, 3, |i, c| one[(i, 0)] * [1.0, 1.0, 2.0][c]),
+            exempt: Mat::zeros(nf, 0),
+            weight: 1.0,
+        };
+        let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + i as f64).collect();
+        assert_eq!(pinned.basis(&scale0).unwrap().u.ncols(), 1);
+        // A matrix of zeros has no direction, an empty one none either.
+        assert_eq!(
+            orthonormal(Mat::<f64>::zeros(3, 2).as_ref(), 0.0)
+                .unwrap()
+                .ncols(),
+            0
+        );
+        let empty = orthonormal(Mat::<f64>::zeros(3, 0).as_ref(), 1.0).unwrap();
+        assert_eq!((empty.nrows(), empty.ncols()), (3, 0));
+        let no_rows = orthonormal(Mat::<f64>::zeros(0, 2).as_ref(), 1.0).unwrap();
+        assert_eq!((no_rows.nrows(), no_rows.ncols()), (0, 0));
+        // A second direction at eps/2 of the largest singular value is
+        // dropped below RANK_TOL and kept above it, at any magnitude.
+        for size in [1.0, 1e3] {
+            for (eps, kept) in [(1e-10, 1), (1e-8, 2)] {
+                let m = Mat::from_fn(3, 2, |i, c| match (i, c) {
+                    (0, _) => size,
+                    (1, 1) => size * eps,
+                    _ => 0.0,
+                });
+                let got = orthonormal(m.as_ref(), 0.0).unwrap().ncols();
+                assert_eq!(got, kept, "size {size}, eps {eps}");
+            }
+        }
+        // Full rank: every column kept, orthonormal.
+        let full = orthonormal(filled(4, 3, 0.2).as_ref(), 0.0).unwrap();
+        assert_eq!(full.ncols(), 3);
+        let gram = full.transpose() * &full;
+        for a in 0..3 {
+            for b in 0..3 {
+                let want = if a == b { 1.0 } else { 0.0 };
+                assert!((gram[(a, b)] - want).abs() < 1e-12);
+            }
+        }
+    }
 }

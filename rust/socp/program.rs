@@ -132,6 +132,7 @@ impl From<&clarabel::solver::DefaultSolution<f64>> for Solved {
 pub struct ConeSolver {
     tol: f64,
     cached: Option<(Key, DefaultSolver<f64>)>,
+    builds: usize,
 }
 
 impl Default for ConeSolver {
@@ -148,6 +149,7 @@ impl std::fmt::Debug for ConeSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ConeSolver")
             .field("cached", &self.cached.is_some())
+            .field("builds", &self.builds)
             .finish()
     }
 }
@@ -157,7 +159,18 @@ impl ConeSolver {
     /// feasibility); below the default, Clarabel's iterative refinement is
     /// switched on as well.
     pub fn new(tol: f64) -> Self {
-        ConeSolver { tol, cached: None }
+        ConeSolver {
+            tol,
+            cached: None,
+            builds: 0,
+        }
+    }
+
+    /// How many Clarabel solvers this one has built: one per change of the
+    /// programs' sparsity pattern (the steps in between reuse it). Cheap to
+    /// read; a benchmark can print it beside its timings.
+    pub fn builds(&self) -> usize {
+        self.builds
     }
 
     /// Solve `prog`: Clarabel's solution, or why it failed. The error is
@@ -227,9 +240,14 @@ impl ConeSolver {
             .map_err(|e| format!("settings: {e}"))?;
         let mut solver = DefaultSolver::new(&p, &prog.q, &a, &prog.b, &cones, settings)
             .map_err(|e| format!("setup failed: {e}"))?;
+        self.builds += 1;
         solver.solve();
         let sol = Solved::from(&solver.solution);
         self.cached = Some((prog.key(), solver));
         Ok(sol)
     }
 }
+
+#[cfg(test)]
+#[path = "program_tests.rs"]
+mod tests;
