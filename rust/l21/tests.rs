@@ -300,7 +300,7 @@ fn settled_when_the_same_groups_are_in_use_and_none_is_dying() {
     assert!(!yes(&[0.5, 0.0], &[0.7, 0.2]));
     assert!(!yes(&[0.5, 0.2], &[0.7, 0.0]));
     // At the threshold a group is not in use.
-    assert!(yes(&[1e-6], &[0.0]));
+    assert!(yes(&[1e-6], &[0.0]) && yes(&[0.0], &[1e-6]));
     assert!(!yes(&[1e-6], &[2e-6]));
     // Between the threshold and eps / 10: dying when it halved or more.
     assert!(!yes(&[4e-5], &[8e-5 * (1.0 + 1e-9)]));
