@@ -654,3 +654,64 @@ fn the_path_runs_from_the_largest_gamma_each_fit_from_the_last() {
         assert_eq!(refused(r).0, "gammas");
     }
 }
+
+/// The linear problem, defined only at one point: every trial point fails
+/// to evaluate (an error that is not fatal), so every step is rejected.
+struct Wall {
+    inner: Linear,
+    at: Vec<f64>,
+}
+
+impl Wall {
+    fn check(&self, theta: &[f64]) -> Result<()> {
+        if theta == self.at.as_slice() {
+            Ok(())
+        } else {
+            Err(crate::error::invalid("model", "not defined here"))
+        }
+    }
+}
+
+impl Objective for Wall {
+    fn shape(&self) -> &Shape {
+        self.inner.shape()
+    }
+    fn n_residuals(&self) -> usize {
+        self.inner.n_residuals()
+    }
+    fn cost(&self, theta: &[f64]) -> Result<f64> {
+        self.check(theta)?;
+        self.inner.cost(theta)
+    }
+    fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
+        self.check(theta)?;
+        self.inner.gauss_newton(theta, free)
+    }
+    fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.check(theta)?;
+        self.inner.response(theta)
+    }
+}
+
+#[test]
+fn a_reweighting_ends_when_no_damping_gives_a_decrease() {
+    let (p, truth) = Linear::new(0.05);
+    let start = perturbed(&truth, 0.5, 1);
+    let wall = Wall {
+        inner: p,
+        at: start.clone(),
+    };
+    let s = L21Settings {
+        gamma: 0.05,
+        max_inner: 100,
+        ..L21Settings::default()
+    };
+    let f = fit(&wall, &start, &SUP, &s);
+    // Rejections until the damping passes its limit (the factor grows
+    // 2, 4, 8, ...: a dozen from lambda0 = 1e-2), then the weights at the
+    // same point are the same.
+    let h = &f.history;
+    assert!(h.iter().all(|it| !it.accepted && it.outer == 1));
+    assert!(h.len() > 5 && h.len() < 20, "{} steps", h.len());
+    assert_eq!((f.stop, f.theta), (Stop::Weights, start));
+}
