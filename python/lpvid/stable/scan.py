@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._minimise import minimise_bounded
 from lpvid._problemlike import ProblemLike
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
@@ -235,8 +236,6 @@ def _crossings(coef: NDArray[np.float64], discrete: bool) -> NDArray[np.float64]
 
 def _refine_1d(model: LpvModel, ps: NDArray, ms: NDArray) -> tuple[float, float, int]:
     """Brent's method around the smallest local minima of the sampled margin."""
-    from scipy.optimize import minimize_scalar
-
     order = np.argsort(ps)
     ps, ms = ps[order], ms[order]
     k = int(np.argmin(ms))
@@ -259,10 +258,10 @@ def _refine_1d(model: LpvModel, ps: NDArray, ms: NDArray) -> tuple[float, float,
         a, b = float(ps[max(i - 1, 0)]), float(ps[min(i + 1, ps.size - 1)])
         if b <= a:
             continue
-        res = minimize_scalar(f, bounds=(a, b), method="bounded", options={"xatol": 1e-12 * span})
-        evals += int(res.nfev)
-        if res.fun < best_m:
-            best_p, best_m = float(res.x), float(res.fun)
+        x, fx, used = minimise_bounded(f, a, b, xatol=1e-12 * span)
+        evals += used
+        if fx < best_m:
+            best_p, best_m = x, fx
     return best_p, best_m, evals
 
 
