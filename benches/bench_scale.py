@@ -5,7 +5,8 @@ shapes move with the scheduling parameter, measured as noisy FRFs (40 dB,
 known sigma) at N points with validation data between them, and identified
 with ``lpvid.identify(data, n, basis, validation=...)`` as a user runs it.
 For every rung it prints the time of every identify stage, the mean LM
-iteration and cone step (with Clarabel's interior-point iterations), the
+iteration and cone step (with its solver's iterations: Newton's method's,
+or Clarabel's interior-point iterations where Newton's method gave up), the
 number of steps, the chosen model's V_NLS and validation V_NLS against their
 noise floors and the groups kept, and the peak memory of the process beside
 what it held before identify and lpvid's estimate of identify's peak
@@ -200,6 +201,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
         "cone_steps": len(socp),
         "cone_step_s": statistics.mean(r["seconds"] for r in socp) if socp else float("nan"),
         "ip_iterations": statistics.mean(r["solver_iterations"] for r in socp) if socp else 0,
+        "newton_steps": sum(r["status"] == "Solved (Newton)" for r in socp),
         "steps_per_gamma": [r.n_iter for r in result.path],
         "pinned": sum(e.pinned for e in result.entries),
         "vnls_ratio": e.vnls / e.noise_floor,
@@ -242,7 +244,8 @@ def report(runs: list[dict]) -> None:
     print(
         f"LM: {first['lm_steps']} steps in the starts, {1e3 * med['lm_iter_s']:.1f} ms each; "
         f"cone: {first['cone_steps']} steps {first['steps_per_gamma']}, "
-        f"{1e3 * med['cone_step_s']:.1f} ms each, {med['ip_iterations']:.1f} IP iterations"
+        f"{1e3 * med['cone_step_s']:.1f} ms each, {med['ip_iterations']:.1f} solver iterations "
+        f"({first.get('newton_steps', 0)} solved by Newton's method, the others by Clarabel)"
         + (f"; {first['pinned']} kept fit(s) pinned" if first.get("pinned") else "")
     )
     print(

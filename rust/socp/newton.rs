@@ -1,0 +1,272 @@
+//! Newton's method on the cone step's program when every group in it
+//! stays away from zero.
+//!
+//! With `t_g` eliminated the program of [`super::ConeProblem::solve_with`]
+//! is the convex function
+//!
+//! ```text
+//! f(x) = 1/2 x^T P x + q^T x + sum_g c_g || z_g(x) ||,   z_g(x) = beta_g + alpha_g o x_g
+//! ```
+//!
+//! (`alpha` zero at a group's fixed entries), smooth wherever no `z_g` is
+//! zero. Its Hessian there is `P` plus, per group, `c_g / ||z|| diag(alpha)
+//! (I - u u^T) diag(alpha)` with `u = z / ||z||`: one dense Cholesky
+//! factorisation per iteration, as one interior-point iteration needs, but
+//! from a good start Newton's method needs a few iterations where the
+//! interior-point method needs about ten. A damped Newton step (backtracking
+//! on `f`) converges on a convex function from any start; near the minimum
+//! the full step is taken and the convergence is quadratic.
+//!
+//! It gives up (and the caller solves the cone program instead) when a
+//! group shrinks towards zero or two cut steps were headed for a group's kink
+//! ([`KINK`]: the minimum may sit there, where Newton's method crawls),
+//! when the Hessian is not positive definite, or after [`MAX_ITERATIONS`].
+
+use super::{ConeGroup, ConeProblem};
+use crate::dense::{cholesky, cholesky_solve};
+use crate::error::Result;
+use crate::memory::try_mat;
+use faer::Mat;
+
+/// Most Newton iterations before the cone solver takes over.
+const MAX_ITERATIONS: u32 = 40;
+
+/// A group whose `||z_g||` falls below this during the iterations may be
+/// on its way to zero (the relative magnitude of (25), as
+/// [`super::SNAP`]): the cone solver takes the program.
+const COLLAPSE: f64 = 1e-6;
+
+/// Sufficient decrease of the backtracking line search (a fraction of the
+/// decrease the Newton model predicts).
+const ARMIJO: f64 = 0.25;
+
+/// Shortest step of the line search before giving up.
+const MIN_STEP: f64 = 1e-10;
+
+/// Two steps in a row cut by the line search whose full length would take
+/// the same group within this fraction of its norm of zero are taken for a
+/// minimum at (or next to) that group's kink. Newton's method crawls there, the group's
+/// norm shrinking by a factor per iteration (measured: steps cut to 1/8,
+/// then 1/128, then 1e-4 and less, the group's norm 0.66, 0.035, 5e-4 ...)
+/// where the interior-point solver takes it in a few iterations.
+const KINK: f64 = 0.1;
+
+/// The smallest tolerance on the Newton decrement (relative to `|f|`):
+/// below it the line search's test of sufficient decrease would compare
+/// rounding errors of `f`.
+const FLOOR_TOL: f64 = 1e-13;
+
+/// One group of the program: its free entries are `x[start..start + alpha.len()]`.
+#[derive(Debug, Clone)]
+pub(super) struct NewtonGroup {
+    pub(super) start: usize,
+    /// `z = beta + alpha o x` over the free entries.
+    pub(super) alpha: Vec<f64>,
+    pub(super) beta: Vec<f64>,
+    /// `sum beta^2` over the fixed entries (constant).
+    pub(super) fixed_squares: f64,
+    /// The weight `c_g` of `||z_g||`.
+    pub(super) weight: f64,
+}
+
+impl NewtonGroup {
+    fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
+        let xs = &x[self.start..self.start + self.alpha.len()];
+        self.alpha
+            .iter()
+            .zip(&self.beta)
+            .zip(xs)
+            .map(|((a, b), x)| b + a * x)
+    }
+
+    fn norm(&self, x: &[f64]) -> f64 {
+        (self.z(x).map(|z| z * z).sum::<f64>() + self.fixed_squares).sqrt()
+    }
+
+    /// The smallest `||z_g||` on the segment from `x` to `x + dx`.
+    fn closest(&self, x: &[f64], dx: &[f64]) -> f64 {
+        let w: Vec<f64> = self
+            .alpha
+            .iter()
+            .zip(&dx[self.start..self.start + self.alpha.len()])
+            .map(|(a, d)| a * d)
+            .collect();
+        let z: Vec<f64> = self.z(x).collect();
+        let ww = dot(&w, &w);
+        let t = if ww > 0.0 {
+            (-dot(&z, &w) / ww).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let moved: Vec<f64> = z.iter().zip(&w).map(|(z, w)| z + t * w).collect();
+        (dot(&moved, &moved) + self.fixed_squares).sqrt()
+    }
+}
+
+/// Newton's answer: the minimiser and the iterations taken.
+#[derive(Debug, Clone)]
+pub(super) struct NewtonSolution {
+    pub(super) x: Vec<f64>,
+    pub(super) iterations: u32,
+}
+
+/// `f` along the line `x + t dx`, from the quadratic's pieces at `x`.
+struct Line<'a> {
+    x: &'a [f64],
+    dx: &'a [f64],
+    groups: &'a [NewtonGroup],
+    /// `1/2 x^T P x + q^T x`, `(P x + q)^T dx` and `dx^T P dx`.
+    value: f64,
+    slope: f64,
+    curvature: f64,
+}
+
+impl Line<'_> {
+    fn at(&self, t: f64) -> f64 {
+        let trial: Vec<f64> = self.x.iter().zip(self.dx).map(|(x, d)| x + t * d).collect();
+        let penalty: f64 = self.groups.iter().map(|g| g.weight * g.norm(&trial)).sum();
+        self.value + t * self.slope + 0.5 * t * t * self.curvature + penalty
+    }
+}
+
+/// `P x` for the symmetric `P`.
+fn times(p: &Mat<f64>, x: &[f64]) -> Vec<f64> {
+    let n = x.len();
+    let mut out = vec![0.0; n];
+    for (j, &xj) in x.iter().enumerate() {
+        if xj != 0.0 {
+            let col = p.col(j);
+            for (i, o) in out.iter_mut().enumerate() {
+                *o += col[i] * xj;
+            }
+        }
+    }
+    out
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Minimise `f` from `x = 0` to `tol` (the Newton decrement `g^T H^-1 g`
+/// at most `tol max(1, |f|)`, `tol` at least [`FLOOR_TOL`], then one more
+/// full step: quadratically closer). `None` when
+/// Newton's method gives up (see the module notes); the error is
+/// [`crate::Error::OutOfMemory`] only.
+pub(super) fn newton(
+    p: &Mat<f64>,
+    q: &[f64],
+    groups: &[NewtonGroup],
+    tol: f64,
+) -> Result<Option<NewtonSolution>> {
+    let n = q.len();
+    let mut x = vec![0.0; n];
+    // The group the last step was cut on its way to.
+    let mut kink = None;
+    for iteration in 1..=MAX_ITERATIONS {
+        let norms: Vec<f64> = groups.iter().map(|g| g.norm(&x)).collect();
+        if norms.iter().any(|&s| !(s.is_finite() && s > COLLAPSE)) {
+            return Ok(None);
+        }
+        let px = times(p, &x);
+        let quad_grad: Vec<f64> = px.iter().zip(q).map(|(a, b)| a + b).collect();
+        let mut grad = quad_grad.clone();
+        let mut h = try_mat(n, n, |i, j| p[(i, j)], "the Hessian of a Newton cone step")?;
+        for (g, &s) in groups.iter().zip(&norms) {
+            let z: Vec<f64> = g.z(&x).collect();
+            let c = g.weight / s;
+            for (a, (&za, &aa)) in z.iter().zip(&g.alpha).enumerate() {
+                grad[g.start + a] += c * aa * za;
+                for (b, (&zb, &ab)) in z.iter().zip(&g.alpha).enumerate() {
+                    let eye = if a == b { 1.0 } else { 0.0 };
+                    h[(g.start + a, g.start + b)] += c * aa * ab * (eye - za * zb / (s * s));
+                }
+            }
+        }
+        let Some(l) = cholesky(h)? else {
+            return Ok(None);
+        };
+        let mut step = Mat::from_fn(n, 1, |i, _| -grad[i]);
+        cholesky_solve(&l, step.as_mut());
+        let dx: Vec<f64> = (0..n).map(|i| step[(i, 0)]).collect();
+        let decrement = -dot(&grad, &dx);
+        let value = 0.5 * dot(&x, &px) + dot(q, &x);
+        let penalty: f64 = groups.iter().zip(&norms).map(|(g, s)| g.weight * s).sum();
+        let f = value + penalty;
+        if !(decrement.is_finite() && f.is_finite() && decrement >= 0.0) {
+            return Ok(None);
+        }
+        if decrement <= tol.max(FLOOR_TOL) * f.abs().max(1.0) {
+            // Within reach of the minimum: the full step, quadratically closer.
+            x.iter_mut().zip(&dx).for_each(|(x, d)| *x += d);
+            return Ok(Some(NewtonSolution {
+                x,
+                iterations: iteration,
+            }));
+        }
+        let line = Line {
+            x: &x,
+            dx: &dx,
+            groups,
+            value,
+            slope: dot(&quad_grad, &dx),
+            curvature: dot(&dx, &times(p, &dx)),
+        };
+        let mut t = 1.0;
+        while line.at(t) > f - ARMIJO * t * decrement {
+            t *= 0.5;
+            if t < MIN_STEP {
+                return Ok(None);
+            }
+        }
+        let headed = (t < 1.0)
+            .then(|| {
+                groups
+                    .iter()
+                    .zip(&norms)
+                    .position(|(g, &s)| g.closest(&x, &dx) < KINK * s)
+            })
+            .flatten();
+        if headed.is_some() && headed == kink {
+            return Ok(None);
+        }
+        kink = headed;
+        x.iter_mut().zip(&dx).for_each(|(x, d)| *x += t * d);
+    }
+    Ok(None)
+}
+
+impl ConeProblem<'_> {
+    /// The open groups as Newton's method sees them (see [`newton`]): the
+    /// same `z_g = varphi (theta_g + S e_g)` as the cones of [`Self::program`].
+    pub(super) fn newton_groups(&self, open: &[&ConeGroup], scale: &[f64]) -> Vec<NewtonGroup> {
+        let mut start = 0;
+        open.iter()
+            .map(|g| {
+                let mut group = NewtonGroup {
+                    start,
+                    alpha: Vec::new(),
+                    beta: Vec::new(),
+                    fixed_squares: 0.0,
+                    weight: self.gamma * g.phi,
+                };
+                for &(i, pos) in &g.entries {
+                    let beta = g.varphi * self.theta[i];
+                    match pos {
+                        Some(p) => {
+                            group.alpha.push(g.varphi * scale[p]);
+                            group.beta.push(beta);
+                        }
+                        None => group.fixed_squares += beta * beta,
+                    }
+                }
+                start += group.alpha.len();
+                group
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+#[path = "newton_tests.rs"]
+mod tests;

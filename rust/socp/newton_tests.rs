@@ -1,0 +1,249 @@
+//! Unit tests of Newton's method on the cone step (`super`): its minimiser
+//! against the optimality conditions (written out with nalgebra) and
+//! against Clarabel on the same cone program, and each way it gives up.
+
+use super::*;
+use crate::socp::program::{Cone, ConeSolver, Csc, Program};
+use crate::testing::Lcg;
+use nalgebra::{DMatrix, DVector};
+
+/// A group over `x[start..start + len]` with `fixed` fixed entries of its own.
+struct Spec {
+    start: usize,
+    len: usize,
+    fixed: Vec<f64>,
+    weight: f64,
+}
+
+/// A random program: `P = B B^T / k + 0.1 I` (well conditioned enough for
+/// a solution determined to 1e-7), `q`, and groups with random `alpha`, `beta`.
+fn random(
+    n: usize,
+    specs: &[Spec],
+    seed: u64,
+) -> (Mat<f64>, Vec<f64>, Vec<NewtonGroup>, Vec<Vec<f64>>) {
+    let mut rng = Lcg(seed);
+    let b = DMatrix::from_fn(n, n + 3, |_, _| rng.next_f64());
+    let p = &b * b.transpose() / (n as f64) + DMatrix::identity(n, n) * 0.1;
+    // A small gradient: the minimum moves each group by less than its size.
+    let q: Vec<f64> = (0..n).map(|_| 0.1 * rng.next_f64()).collect();
+    let mut fixed = Vec::new();
+    let groups = specs
+        .iter()
+        .map(|s| {
+            fixed.push(s.fixed.clone());
+            NewtonGroup {
+                start: s.start,
+                alpha: (0..s.len).map(|_| 1.0 + rng.next_f64()).collect(),
+                // Sizes of 1 and more: the minima stay away from the kinks.
+                beta: (0..s.len).map(|_| 1.0 + rng.next_f64()).collect(),
+                fixed_squares: s.fixed.iter().map(|v| v * v).sum(),
+                weight: s.weight,
+            }
+        })
+        .collect();
+    (Mat::from_fn(n, n, |i, j| p[(i, j)]), q, groups, fixed)
+}
+
+fn specs(weight: f64) -> Vec<Spec> {
+    vec![
+        Spec {
+            start: 0,
+            len: 4,
+            fixed: vec![],
+            weight,
+        },
+        Spec {
+            start: 4,
+            len: 5,
+            fixed: vec![0.7, -0.2],
+            weight: 0.5 * weight,
+        },
+        Spec {
+            start: 9,
+            len: 3,
+            fixed: vec![],
+            weight: 2.0 * weight,
+        },
+    ]
+}
+
+/// `f` and its gradient, written out with nalgebra.
+fn value_and_gradient(
+    p: &Mat<f64>,
+    q: &[f64],
+    groups: &[NewtonGroup],
+    x: &[f64],
+) -> (f64, DVector<f64>) {
+    let n = q.len();
+    let pm = DMatrix::from_fn(n, n, |i, j| p[(i, j)]);
+    let xv = DVector::from_column_slice(x);
+    let qv = DVector::from_column_slice(q);
+    let mut grad = &pm * &xv + &qv;
+    let mut f = 0.5 * xv.dot(&(&pm * &xv)) + qv.dot(&xv);
+    for g in groups {
+        let z: Vec<f64> = (0..g.alpha.len())
+            .map(|a| g.beta[a] + g.alpha[a] * x[g.start + a])
+            .collect();
+        let norm = (z.iter().map(|v| v * v).sum::<f64>() + g.fixed_squares).sqrt();
+        f += g.weight * norm;
+        for (a, za) in z.iter().enumerate() {
+            grad[g.start + a] += g.weight * g.alpha[a] * za / norm;
+        }
+    }
+    (f, grad)
+}
+
+#[test]
+fn the_minimiser_meets_the_optimality_conditions() {
+    for (seed, weight) in [(1, 0.02), (2, 0.05), (3, 0.1)] {
+        // x[12] is in no group: only the quadratic holds it.
+        let (p, q, groups, _) = random(13, &specs(weight), seed);
+        let sol = newton(&p, &q, &groups, 1e-8)
+            .unwrap()
+            .expect("Newton's method converges");
+        let (_, grad) = value_and_gradient(&p, &q, &groups, &sol.x);
+        assert!(
+            grad.amax() < 1e-10,
+            "seed {seed}: gradient {:.2e}",
+            grad.amax()
+        );
+        assert!(
+            sol.iterations <= 12,
+            "seed {seed}: {} iterations",
+            sol.iterations
+        );
+    }
+}
+
+#[test]
+fn a_looser_tolerance_stops_earlier_at_an_answer_near_the_tight_one() {
+    let (p, q, groups, _) = random(13, &specs(0.05), 2);
+    let tight = newton(&p, &q, &groups, 1e-14).unwrap().unwrap();
+    let loose = newton(&p, &q, &groups, 1e-2).unwrap().unwrap();
+    assert!(
+        loose.iterations < tight.iterations,
+        "{} vs {}",
+        loose.iterations,
+        tight.iterations
+    );
+    // One full step after a decrement of 1e-2: within about the decrement's square root.
+    let diff = loose
+        .x
+        .iter()
+        .zip(&tight.x)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(diff > 0.0 && diff < 0.1, "{diff}");
+}
+
+/// The same problem as Clarabel's program over `[x; t]`, each cone
+/// `(t_g, z_g)` with its fixed entries as constant rows.
+fn as_program(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>]) -> Program {
+    let n = q.len();
+    let mut pc = Csc::new();
+    for c in 0..n {
+        pc.push((0..=c).map(|i| (i, p[(i, c)])));
+    }
+    groups.iter().for_each(|_| pc.push([]));
+    // Rows: per group t, its free entries, its fixed entries.
+    let mut b = Vec::new();
+    let mut cones = Vec::new();
+    let mut x_rows = vec![None; n];
+    let mut t_rows = Vec::new();
+    for (g, fx) in groups.iter().zip(fixed) {
+        t_rows.push(b.len());
+        b.push(0.0);
+        for a in 0..g.alpha.len() {
+            x_rows[g.start + a] = Some((b.len(), -g.alpha[a]));
+            b.push(g.beta[a]);
+        }
+        b.extend(fx);
+        cones.push(Cone::Soc(1 + g.alpha.len() + fx.len()));
+    }
+    let mut a = Csc::new();
+    for row in &x_rows {
+        a.push(row.iter().copied());
+    }
+    for &row in &t_rows {
+        a.push([(row, -1.0)]);
+    }
+    let mut qq = q.to_vec();
+    qq.extend(groups.iter().map(|g| g.weight));
+    Program {
+        p: pc,
+        q: qq,
+        a,
+        b,
+        cones,
+    }
+}
+
+#[test]
+fn the_minimiser_is_clarabels_to_its_accuracy() {
+    for (seed, weight) in [(4, 0.05), (5, 0.1)] {
+        let (p, q, groups, fixed) = random(13, &specs(weight), seed);
+        let sol = newton(&p, &q, &groups, 1e-8).unwrap().unwrap();
+        let reference = ConeSolver::new(1e-10)
+            .run(&as_program(&p, &q, &groups, &fixed))
+            .unwrap()
+            .unwrap();
+        let x_ref = &reference.x[..13];
+        let diff = sol
+            .x
+            .iter()
+            .zip(x_ref)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        // Clarabel's gap of 1e-10 bounds its error by sqrt(2e-10 / 0.1).
+        assert!(diff < 5e-5, "seed {seed}: {diff:.2e}");
+        // Newton's point is no worse than Clarabel's (to rounding).
+        let (f, _) = value_and_gradient(&p, &q, &groups, &sol.x);
+        let (f_ref, _) = value_and_gradient(&p, &q, &groups, x_ref);
+        assert!(
+            f <= f_ref + 1e-13 * f_ref.abs(),
+            "seed {seed}: {f} > {f_ref}"
+        );
+    }
+}
+
+#[test]
+fn it_gives_up_when_a_group_heads_for_zero() {
+    // A weight far above the gradient the quadratic can oppose puts the
+    // first group's minimum at z = 0 (its subgradient condition holds there).
+    let mut s = specs(0.1);
+    s[0].weight = 50.0;
+    let (p, q, groups, fixed) = random(13, &s, 6);
+    assert!(newton(&p, &q, &groups, 1e-8).unwrap().is_none());
+    // Clarabel finds that group at zero.
+    let reference = ConeSolver::new(1e-10)
+        .run(&as_program(&p, &q, &groups, &fixed))
+        .unwrap()
+        .unwrap();
+    let g = &groups[0];
+    let z: f64 = (0..4)
+        .map(|a| (g.beta[a] + g.alpha[a] * reference.x[a]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(z < 1e-6, "{z}");
+}
+
+#[test]
+fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
+    let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
+    let keep = groups.clone();
+    groups[2].beta.iter_mut().for_each(|b| *b = 0.0);
+    assert!(
+        newton(&p, &q, &groups, 1e-8).unwrap().is_none(),
+        "z_g = 0 at the start"
+    );
+    let negative = Mat::from_fn(13, 13, |i, j| if i == j { -1.0 } else { 0.0 });
+    assert!(
+        newton(&negative, &q, &keep, 1e-8).unwrap().is_none(),
+        "P = -I"
+    );
+    // A non-finite q: no answer rather than NaN.
+    let mut bad = q.clone();
+    bad[3] = f64::NAN;
+    assert!(newton(&p, &bad, &keep, 1e-8).unwrap().is_none(), "NaN in q");
+}
