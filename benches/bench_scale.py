@@ -202,6 +202,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
         "cone_step_s": statistics.mean(r["seconds"] for r in socp) if socp else float("nan"),
         "ip_iterations": statistics.mean(r["solver_iterations"] for r in socp) if socp else 0,
         "newton_steps": sum(r["status"] == "Solved (Newton)" for r in socp),
+        "zero_steps": sum(r["status"] == "Solved (every group at zero)" for r in socp),
         "steps_per_gamma": [r.n_iter for r in result.path],
         "pinned": sum(e.pinned for e in result.entries),
         "vnls_ratio": e.vnls / e.noise_floor,
@@ -245,7 +246,8 @@ def report(runs: list[dict]) -> None:
         f"LM: {first['lm_steps']} steps in the starts, {1e3 * med['lm_iter_s']:.1f} ms each; "
         f"cone: {first['cone_steps']} steps {first['steps_per_gamma']}, "
         f"{1e3 * med['cone_step_s']:.1f} ms each, {med['ip_iterations']:.1f} solver iterations "
-        f"({first.get('newton_steps', 0)} solved by Newton's method, the others by Clarabel)"
+        f"({first.get('newton_steps', 0)} by Newton's method, {first.get('zero_steps', 0)} with "
+        "every group at zero, the others by Clarabel)"
         + (f"; {first['pinned']} kept fit(s) pinned" if first.get("pinned") else "")
     )
     print(

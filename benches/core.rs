@@ -85,10 +85,22 @@ fn bench_steps(c: &mut Criterion) {
         gamma: 1e-3,
         n_residuals: problem.n_residuals() as f64,
         pinned: None,
+        newton: true,
     };
+    let by_clarabel = lpvid::socp::ConeProblem {
+        newton: false,
+        ..cone
+    };
+    c.bench_function(
+        "gantry: SOCP solve only (Newton, Clarabel where it gives up)",
+        |b| {
+            let mut solver = lpvid::socp::ConeSolver::default();
+            b.iter(|| black_box(cone.solve(mu, &mut solver)))
+        },
+    );
     c.bench_function("gantry: SOCP solve only (build + Clarabel)", |b| {
         let mut solver = lpvid::socp::ConeSolver::default();
-        b.iter(|| black_box(cone.solve(mu, &mut solver)))
+        b.iter(|| black_box(by_clarabel.solve(mu, &mut solver)))
     });
     c.bench_function(
         "gantry: SOCP step (build + solve, trial V_NLS, J^T J at new point)",

@@ -201,6 +201,7 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
     // process, not by each fit).
     let (p, theta) = problem(Shape::new(4, 1, 1, 1).unwrap(), 3, 50);
     p.gauss_newton(&theta, &FreeSet::all(theta.len())).unwrap();
+    let mut by_newton = 0;
     for (shape, points, lines) in [
         (Shape::new(16, 2, 2, 3).unwrap(), 9, 500),
         (Shape::new(24, 3, 3, 1).unwrap(), 3, 300),
@@ -227,10 +228,13 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
             peak_of(|| levenberg_marquardt(&p, &theta, &free, &lm, &mut Silent).unwrap());
         drop(fit);
         assert_bounds(&format!("{label} LM"), peak, lm_est.total, lm_est.scratch);
+        // The estimate is Clarabel's (Newton's method may give any step to
+        // it): measured with Clarabel alone, and bounding Newton's method's.
         let l21 = L21Settings {
             gamma: 1e-3,
             max_outer: 1,
             max_inner: 2,
+            newton: false,
             ..L21Settings::default()
         };
         let sup = vec![1.0; shape.nb];
@@ -239,7 +243,25 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
         drop(fit);
         let e = est.estimate(Method::L21 { pinned: false });
         assert_bounds(&format!("{label} l21"), peak, e.total, e.scratch);
+        let newton = L21Settings {
+            newton: true,
+            ..l21
+        };
+        let (fit, peak) =
+            peak_of(|| fit_l21(&p, &theta, &free, &sup, &newton, None, &mut Silent).unwrap());
+        by_newton += fit
+            .history
+            .iter()
+            .filter(|h| h.status == "Solved (Newton)")
+            .count();
+        drop(fit);
+        assert!(
+            peak <= e.total,
+            "{label} l21 by Newton: {peak} above {}",
+            e.total
+        );
     }
+    assert!(by_newton > 0, "no step of these fits by Newton's method");
 }
 
 #[test]

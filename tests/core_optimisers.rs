@@ -287,6 +287,7 @@ impl ConeCase {
             gamma: CASE_GAMMA,
             n_residuals: CASE_M,
             pinned: None,
+            newton: true,
         }
     }
 }

@@ -238,6 +238,7 @@ pub fn fit_l21(
                 gamma: settings.gamma,
                 n_residuals: m_res,
                 pinned: pinned.as_ref(),
+                newton: settings.newton,
             };
             let objective = gn.vnls / m_res + cone.penalty(None);
             let lambda = damping.lambda();
@@ -366,6 +367,7 @@ pub fn single_cone_step(
         gamma: settings.gamma,
         n_residuals: m_res,
         pinned: None,
+        newton: settings.newton,
     };
     let solved = cone.solve(mu, &mut ConeSolver::new(settings.cone_tol))?;
     // g^T d + d^T (J^T J + mu D) d = -predicted decrease + mu d^T D d.

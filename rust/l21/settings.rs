@@ -34,8 +34,14 @@ pub struct L21Settings {
     pub dvnls_min: f64,
     /// Relative magnitude (23) above which a group counts as in use.
     pub threshold: f64,
-    /// Accuracy of the cone solves (Clarabel's gap and feasibility tolerances).
+    /// Accuracy of the cone solves (Clarabel's gap and feasibility
+    /// tolerances; Newton's method's decrement, relative to the objective).
     pub cone_tol: f64,
+    /// Solve each cone step by Newton's method first, by Clarabel where it
+    /// gives up (see [`crate::socp`]); false: by Clarabel alone. Not a
+    /// Python setting: the core's own tests measure Clarabel's worst case
+    /// with it.
+    pub newton: bool,
     /// Inner loop also stops when an accepted step lowers the objective by
     /// less than `ftol` times its value (about `V_NLS / M`: the default
     /// 1e-4 is far below the noise in `V_NLS / M`, `1 / sqrt(M)`).
@@ -60,6 +66,7 @@ impl Default for L21Settings {
             dvnls_min: 1e-3,
             threshold: 1e-6,
             cone_tol: DEFAULT_CONE_TOL,
+            newton: true,
             ftol: 1e-4,
             max_outer: 20,
             max_inner: 10,

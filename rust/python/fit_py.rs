@@ -201,6 +201,7 @@ fn l21_settings(d: &Bound<'_, PyDict>) -> PyResult<L21Settings> {
         max_outer: setting(d, "max_outer", base.max_outer)?,
         max_inner: setting(d, "max_inner", base.max_inner)?,
         lambda0: setting(d, "lambda0", base.lambda0)?,
+        ..base
     };
     s.validate()?;
     Ok(s)

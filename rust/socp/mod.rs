@@ -28,17 +28,10 @@
 //! size are set exactly to zero, so that the next step can fix them.
 //!
 //! **Newton first.** With the groups at zero left out, the program is
-//! usually a smooth convex function of the step (no group of it ends at
-//! zero). Newton's method (`newton.rs`) minimises it in about three iterations (each one
-//! Cholesky factorisation of the dense block, as one interior-point
-//! iteration needs; Clarabel takes about ten) and to machine precision
-//! where Clarabel stops at its tolerance or at "AlmostSolved". It gives up
-//! when a group heads for zero, and Clarabel solves that program. Measured
-//! (`benches/bench_scale.py`): 85 % of the gantry path's steps by Newton's
-//! method, a cone step 6.2 -> 1.9 ms on average, the same chosen model;
-//! on n = 10 and n = 16, where Clarabel stopped at "AlmostSolved" on most
-//! steps, the paths it gave moved with a change of 1e-12 in the data
-//! (other step counts, one more group at n = 16) and Newton's do not.
+//! usually smooth: Newton's method (`newton.rs`) minimises it in about three
+//! Cholesky factorisations where Clarabel takes about ten, and to machine
+//! precision. A group it finds heading for zero is fixed there for the next
+//! round; Clarabel solves the program when that is refuted.
 //!
 //! A group at zero stays out even when its gradient is at or over its
 //! bound at the current point: the other groups' moves usually bring it
@@ -64,7 +57,7 @@ use crate::objective::GaussNewton;
 use clarabel::solver::SolverStatus;
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat};
-use newton::newton;
+use newton::{newton, Newton};
 
 /// A group whose relative magnitude `varphi ||theta_g + d_g||` ends below
 /// this after a cone solve is set exactly to zero (the interior-point
@@ -91,6 +84,8 @@ pub struct ConeProblem<'a> {
     pub n_residuals: f64,
     /// Directions the step is kept off, if any.
     pub pinned: Option<&'a PinnedBasis>,
+    /// Newton's method first (see the module notes); false: Clarabel alone.
+    pub newton: bool,
 }
 
 /// Result of one cone solve.
@@ -202,10 +197,33 @@ impl ConeProblem<'_> {
         }
         let mut iterations = 0;
         let mut solves = 0;
-        for _ in 0..MAX_ROUNDS {
-            let round = self.solve_with(mu, &zero, &scale, curvature.as_ref(), cache)?;
+        // Groups Newton's method stopped at (fixed at zero for the next round).
+        let mut kinked = vec![false; self.groups.len()];
+        let mut put_back = vec![false; self.groups.len()];
+        let mut by_newton = self.newton;
+        for round in 0..MAX_ROUNDS {
+            let curv = curvature.as_ref();
+            let round = self.solve_with(
+                mu,
+                &zero,
+                &scale,
+                curv,
+                cache,
+                by_newton && round < MAX_ROUNDS - 2,
+            )?;
             iterations += round.iterations;
             solves += usize::from(round.solved);
+            if let Some(k) = round.kink {
+                // The check below puts it back if zero is not optimal;
+                // then Clarabel solves the program.
+                if self.groups[k].can_vanish(self.theta) && !kinked[k] && !put_back[k] {
+                    zero[k] = true;
+                    kinked[k] = true;
+                } else {
+                    by_newton = false;
+                }
+                continue;
+            }
             let Some(mut d) = round.step else {
                 return Ok(ConeStep {
                     step: None,
@@ -222,6 +240,8 @@ impl ConeProblem<'_> {
                 if zero[k] && g.free_norm(&grad) > self.bound(g) * (1.0 + 1e-9) {
                     zero[k] = false;
                     violated = true;
+                    put_back[k] = true;
+                    by_newton &= !kinked[k];
                 }
             }
             if violated {
@@ -271,7 +291,8 @@ impl ConeProblem<'_> {
     /// `X(0)`) enter only the quadratic; they are eliminated first by a
     /// Schur complement, which shrinks the dense block Clarabel works with,
     /// and recovered after. With no group left, that elimination is the
-    /// whole solution.
+    /// whole solution. With `by_newton`, Newton's method first: when it
+    /// finds a group on its way to zero the round ends there (its `kink`).
     fn solve_with(
         &self,
         mu: f64,
@@ -279,6 +300,7 @@ impl ConeProblem<'_> {
         scale: &[f64],
         extra: Option<&Mat<f64>>,
         cache: &mut ConeSolver,
+        by_newton: bool,
     ) -> Result<Round> {
         let nf = self.gn.dim();
         let m_res = self.n_residuals;
@@ -295,18 +317,16 @@ impl ConeProblem<'_> {
             .map(|(p, &d)| (p, d / scale[p]))
             .collect();
         let mut in_zero = vec![false; nf];
-        let open: Vec<&ConeGroup> = self
-            .groups
-            .iter()
-            .zip(zero)
-            .filter(|(g, &z)| {
-                if z {
+        let open_index: Vec<usize> = (0..self.groups.len())
+            .filter(|&k| {
+                let g = &self.groups[k];
+                if zero[k] {
                     g.free_positions().for_each(|p| in_zero[p] = true);
                 }
-                g.is_active() && !z
+                g.is_active() && !zero[k]
             })
-            .map(|(g, _)| g)
             .collect();
+        let open: Vec<&ConeGroup> = open_index.iter().map(|&k| &self.groups[k]).collect();
         let q_full = |i: usize| {
             self.gn.gradient[i] / m_res * scale[i]
                 + e_zero.iter().map(|&(j, e)| p_full(i, j) * e).sum::<f64>()
@@ -350,6 +370,12 @@ impl ConeProblem<'_> {
             }
             elimination = Some((l, w, v));
         }
+        let tried = if ng > 0 && by_newton {
+            let groups = self.newton_groups(&open, scale);
+            newton(&p_red, &q_red, &groups, cache.tol())?
+        } else {
+            Newton::GaveUp { iterations: 0 }
+        };
         let (x_g, status, iterations, solved) = if ng == 0 {
             (
                 Vec::new(),
@@ -357,14 +383,19 @@ impl ConeProblem<'_> {
                 0,
                 false,
             )
-        } else if let Some(sol) = newton(
-            &p_red,
-            &q_red,
-            &self.newton_groups(&open, scale),
-            cache.tol(),
-        )? {
-            (sol.x, "Solved (Newton)".to_string(), sol.iterations, true)
+        } else if let Newton::Solved { x, iterations } = tried {
+            (x, "Solved (Newton)".to_string(), iterations, true)
+        } else if let Newton::Kink { group, iterations } = tried {
+            return Ok(Round {
+                kink: Some(open_index[group]),
+                iterations,
+                ..Round::failed("a group on its way to zero")
+            });
         } else {
+            let spent = match tried {
+                Newton::GaveUp { iterations } => iterations,
+                _ => 0,
+            };
             let program = self.program(&open, scale, &p_red, q_red)?;
             drop(p_red);
             let sol = match cache.run(&program)? {
@@ -379,14 +410,15 @@ impl ConeProblem<'_> {
                 return Ok(Round {
                     step: None,
                     status: format!("{:?}", sol.status),
-                    iterations: sol.iterations,
+                    iterations: spent + sol.iterations,
                     solved: true,
+                    kink: None,
                 });
             }
             (
                 sol.x[..nk].to_vec(),
                 format!("{:?}", sol.status),
-                sol.iterations,
+                spent + sol.iterations,
                 true,
             )
         };
@@ -416,6 +448,7 @@ impl ConeProblem<'_> {
             },
             iterations,
             solved,
+            kink: None,
         })
     }
 }
@@ -435,6 +468,8 @@ struct Round {
     status: String,
     iterations: u32,
     solved: bool,
+    /// The group Newton's method found on its way to zero (no step then).
+    kink: Option<usize>,
 }
 
 impl Round {
@@ -444,6 +479,7 @@ impl Round {
             status: why.to_string(),
             iterations: 0,
             solved: false,
+            kink: None,
         }
     }
 }

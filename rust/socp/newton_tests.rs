@@ -7,6 +7,14 @@ use crate::socp::program::{Cone, ConeSolver, Csc, Program};
 use crate::testing::Lcg;
 use nalgebra::{DMatrix, DVector};
 
+/// The minimiser and the iterations, when Newton's method found it.
+fn solved(out: Newton) -> Option<(Vec<f64>, u32)> {
+    match out {
+        Newton::Solved { x, iterations } => Some((x, iterations)),
+        _ => None,
+    }
+}
+
 /// A group over `x[start..start + len]` with `fixed` fixed entries of its own.
 struct Spec {
     start: usize,
@@ -99,39 +107,30 @@ fn the_minimiser_meets_the_optimality_conditions() {
     for (seed, weight) in [(1, 0.02), (2, 0.05), (3, 0.1)] {
         // x[12] is in no group: only the quadratic holds it.
         let (p, q, groups, _) = random(13, &specs(weight), seed);
-        let sol = newton(&p, &q, &groups, 1e-8)
-            .unwrap()
-            .expect("Newton's method converges");
-        let (_, grad) = value_and_gradient(&p, &q, &groups, &sol.x);
-        assert!(
-            grad.amax() < 1e-10,
-            "seed {seed}: gradient {:.2e}",
-            grad.amax()
-        );
-        assert!(
-            sol.iterations <= 12,
-            "seed {seed}: {} iterations",
-            sol.iterations
-        );
+        for (tol, bound) in [(1e-8, 1e-8), (1e-12, 1e-11)] {
+            let out = newton(&p, &q, &groups, tol).unwrap();
+            let (x, iterations) = solved(out).expect("Newton's method converges");
+            let (_, grad) = value_and_gradient(&p, &q, &groups, &x);
+            let worst = grad.amax();
+            assert!(
+                worst < bound,
+                "seed {seed}, tol {tol}: gradient {worst:.2e}"
+            );
+            assert!(iterations <= 12, "seed {seed}: {iterations} iterations");
+        }
     }
 }
 
 #[test]
 fn a_looser_tolerance_stops_earlier_at_an_answer_near_the_tight_one() {
     let (p, q, groups, _) = random(13, &specs(0.05), 2);
-    let tight = newton(&p, &q, &groups, 1e-14).unwrap().unwrap();
-    let loose = newton(&p, &q, &groups, 1e-2).unwrap().unwrap();
-    assert!(
-        loose.iterations < tight.iterations,
-        "{} vs {}",
-        loose.iterations,
-        tight.iterations
-    );
+    let (tight, slow) = solved(newton(&p, &q, &groups, 1e-14).unwrap()).unwrap();
+    let (loose, fast) = solved(newton(&p, &q, &groups, 1e-2).unwrap()).unwrap();
+    assert!(fast < slow, "{fast} vs {slow} iterations");
     // One full step after a decrement of 1e-2: within about the decrement's square root.
     let diff = loose
-        .x
         .iter()
-        .zip(&tight.x)
+        .zip(&tight)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
     assert!(diff > 0.0 && diff < 0.1, "{diff}");
@@ -183,14 +182,13 @@ fn as_program(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>
 fn the_minimiser_is_clarabels_to_its_accuracy() {
     for (seed, weight) in [(4, 0.05), (5, 0.1)] {
         let (p, q, groups, fixed) = random(13, &specs(weight), seed);
-        let sol = newton(&p, &q, &groups, 1e-8).unwrap().unwrap();
+        let (x, _) = solved(newton(&p, &q, &groups, 1e-8).unwrap()).unwrap();
         let reference = ConeSolver::new(1e-10)
             .run(&as_program(&p, &q, &groups, &fixed))
             .unwrap()
             .unwrap();
         let x_ref = &reference.x[..13];
-        let diff = sol
-            .x
+        let diff = x
             .iter()
             .zip(x_ref)
             .map(|(a, b)| (a - b).abs())
@@ -198,7 +196,7 @@ fn the_minimiser_is_clarabels_to_its_accuracy() {
         // Clarabel's gap of 1e-10 bounds its error by sqrt(2e-10 / 0.1).
         assert!(diff < 5e-5, "seed {seed}: {diff:.2e}");
         // Newton's point is no worse than Clarabel's (to rounding).
-        let (f, _) = value_and_gradient(&p, &q, &groups, &sol.x);
+        let (f, _) = value_and_gradient(&p, &q, &groups, &x);
         let (f_ref, _) = value_and_gradient(&p, &q, &groups, x_ref);
         assert!(
             f <= f_ref + 1e-13 * f_ref.abs(),
@@ -214,7 +212,13 @@ fn it_gives_up_when_a_group_heads_for_zero() {
     let mut s = specs(0.1);
     s[0].weight = 50.0;
     let (p, q, groups, fixed) = random(13, &s, 6);
-    assert!(newton(&p, &q, &groups, 1e-8).unwrap().is_none());
+    assert!(
+        matches!(
+            newton(&p, &q, &groups, 1e-8).unwrap(),
+            Newton::Kink { group: 0, .. }
+        ),
+        "the first group is named"
+    );
     // Clarabel finds that group at zero.
     let reference = ConeSolver::new(1e-10)
         .run(&as_program(&p, &q, &groups, &fixed))
@@ -233,17 +237,26 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
     let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
     let keep = groups.clone();
     groups[2].beta.iter_mut().for_each(|b| *b = 0.0);
+    let at_zero = newton(&p, &q, &groups, 1e-8).unwrap();
     assert!(
-        newton(&p, &q, &groups, 1e-8).unwrap().is_none(),
-        "z_g = 0 at the start"
+        matches!(
+            at_zero,
+            Newton::Kink {
+                group: 2,
+                iterations: 1
+            }
+        ),
+        "z_g = 0 at the start: {at_zero:?}"
     );
     let negative = Mat::from_fn(13, 13, |i, j| if i == j { -1.0 } else { 0.0 });
+    let indefinite = newton(&negative, &q, &keep, 1e-8).unwrap();
     assert!(
-        newton(&negative, &q, &keep, 1e-8).unwrap().is_none(),
-        "P = -I"
+        matches!(indefinite, Newton::GaveUp { iterations: 1 }),
+        "P = -I: {indefinite:?}"
     );
     // A non-finite q: no answer rather than NaN.
     let mut bad = q.clone();
     bad[3] = f64::NAN;
-    assert!(newton(&p, &bad, &keep, 1e-8).unwrap().is_none(), "NaN in q");
+    let nan = newton(&p, &bad, &keep, 1e-8).unwrap();
+    assert!(matches!(nan, Newton::GaveUp { .. }), "NaN in q");
 }

@@ -71,6 +71,7 @@ impl Case {
             gamma: self.gamma,
             n_residuals: self.m,
             pinned: self.pinned.as_ref(),
+            newton: true,
         }
     }
 
@@ -191,6 +192,7 @@ fn model_gradient_is_g_over_m_plus_the_damped_quadratic_times_d() {
         gamma: 1.0,
         n_residuals: 4.0,
         pinned: None,
+        newton: true,
     };
     // At d = 0: g/M.
     assert_eq!(cone.model_gradient(0.5, &[0.0, 0.0]), vec![0.75, -1.5]);
@@ -207,6 +209,7 @@ fn model_gradient_is_g_over_m_plus_the_damped_quadratic_times_d() {
     let basis = pinned.basis(&[1.0, 1.0]).unwrap();
     let kept = ConeProblem {
         pinned: Some(&basis),
+        newton: true,
         ..cone
     };
     // u . d = (3 - 8)/5 = -1: adds -2 (0.6, 0.8).
@@ -284,12 +287,29 @@ fn a_prediction_the_zero_point_refutes_is_solved_once() {
 #[test]
 fn a_group_left_at_a_negligible_size_is_snapped_to_zero() {
     // Not predicted (||q|| > 0.27), but its gradient at zero is inside
-    // the bound: the solver brings it to the cone's tip, SNAP to zero.
+    // the bound: Clarabel brings it to the cone's tip, SNAP to zero.
     let c = single([0.2, 0.2], [0.01, -0.02]);
     assert!(c.q.norm() > 0.27 && c.q.norm() <= 0.3 && gradient_at_zero(&c) <= 0.3);
-    let s = c.solve();
+    let cone = ConeProblem {
+        newton: false,
+        ..c.cone()
+    };
+    let s = cone.solve(c.mu, &mut ConeSolver::new(1e-10)).unwrap();
     assert_eq!((s.solves, s.zeroed), (1, 1));
-    assert!(s.iterations > 0);
+    assert!(s.iterations > 0 && s.status != "Solved (Newton)");
+    assert_eq!(s.step.unwrap(), vec![-0.01, 0.02]);
+}
+
+#[test]
+fn a_group_newtons_method_finds_on_its_way_to_zero_is_fixed_there() {
+    // The same program: Newton's method sees the group heading for its
+    // kink, the next round fixes it at zero and the check confirms it,
+    // with no cone program solved.
+    let c = single([0.2, 0.2], [0.01, -0.02]);
+    let s = c.solve();
+    assert_eq!((s.solves, s.zeroed), (0, 1));
+    assert!(s.iterations > 0, "Newton's iterations are counted");
+    assert_eq!(s.status, "Solved (every group at zero)");
     assert_eq!(s.step.unwrap(), vec![-0.01, 0.02]);
 }
 

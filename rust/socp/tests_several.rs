@@ -78,7 +78,7 @@ fn cone_gradient_norm_after_first_round(c: &Case) -> f64 {
     let zero = [true, false, false];
     let mut solver = ConeSolver::new(1e-10);
     let r = cone
-        .solve_with(c.mu, &zero, &scale, None, &mut solver)
+        .solve_with(c.mu, &zero, &scale, None, &mut solver, true)
         .unwrap();
     let g = c.gradient(&r.step.unwrap(), None);
     g[0].hypot(g[1])
@@ -101,21 +101,27 @@ fn a_resting_group_the_solution_needs_is_put_back() {
     let first = cone_gradient_norm_after_first_round(&c);
     assert!(first > 0.05 * (1.0 + 1e-9) && first < 1.05, "{first}");
     assert_eq!(s.zeroed, 0);
-    // Iterations are the two rounds' together: first with the group at
-    // zero, then with it back.
+    // Iterations are the rounds' together: first with the group at zero
+    // (Newton's method), then with it back: Newton's method stops at once
+    // on that group (at zero at the start) and Clarabel solves the program.
     let cone = c.cone();
     let scale = cone.jacobi_scale(c.mu);
-    let rounds: u32 = [[true, false, false], [false, false, false]]
-        .iter()
-        .map(|zero| {
-            let r = cone
-                .solve_with(c.mu, zero, &scale, None, &mut ConeSolver::new(1e-10))
-                .unwrap();
-            assert!(r.solved && r.iterations > 0);
-            r.iterations
-        })
-        .sum();
-    assert_eq!(s.iterations, rounds);
+    let solve = |zero: &[bool; 3], by_newton| {
+        let mut solver = ConeSolver::new(1e-10);
+        cone.solve_with(c.mu, zero, &scale, None, &mut solver, by_newton)
+            .unwrap()
+    };
+    let first = solve(&[true, false, false], true);
+    assert!(
+        first.solved && first.status == "Solved (Newton)",
+        "{}",
+        first.status
+    );
+    let kink = solve(&[false, false, false], true);
+    assert!(!kink.solved && kink.kink == Some(0) && kink.iterations == 1);
+    let last = solve(&[false, false, false], false);
+    assert!(last.solved && last.status.starts_with("Solved") && last.status != "Solved (Newton)");
+    assert_eq!(s.iterations, first.iterations + 1 + last.iterations);
 }
 
 #[test]
