@@ -32,11 +32,18 @@ pub fn par_for(flops: f64) -> Par {
 /// (`A = L L^T`), or `None` when `A` is not numerically positive definite
 /// ([`crate::Error::OutOfMemory`] when the factorisation's scratch space
 /// cannot be had).
-/// `L` is the lower triangle of the result; the strict upper triangle keeps
-/// `A`'s entries (the triangular solves below read the lower triangle
-/// only; clearing the other half cost a pass over the matrix, 1.3 million
-/// writes at n = 16 2x2).
+/// `L` is the lower triangle of the result; the strict upper triangle is
+/// left as the factorisation leaves it (the triangular solves below read
+/// the lower triangle only; clearing the other half cost a pass over the
+/// matrix, 1.3 million writes at n = 16 2x2).
 pub fn cholesky(mut a: Mat<f64>) -> Result<Option<Mat<f64>>> {
+    Ok(factor_lower(a.as_mut())?.then_some(a))
+}
+
+/// [`cholesky`] in place: `a` is overwritten, `L` in its lower triangle
+/// (faer's factorisation also writes into the strict upper triangle).
+/// False when `a` is not numerically positive definite.
+pub fn factor_lower(a: MatMut<'_, f64>) -> Result<bool> {
     let n = a.nrows();
     let par = par_for((n * n * n) as f64 / 3.0);
     let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
@@ -47,14 +54,8 @@ pub fn cholesky(mut a: Mat<f64>) -> Result<Option<Mat<f64>>> {
         )
     })?;
     let stack = MemStack::new(&mut mem);
-    let factored = cholesky_in_place(
-        a.as_mut(),
-        Default::default(),
-        par,
-        stack,
-        Default::default(),
-    );
-    Ok(factored.ok().map(|_| a))
+    let factored = cholesky_in_place(a, Default::default(), par, stack, Default::default());
+    Ok(factored.is_ok())
 }
 
 /// Solve `L L^T x = b` in place.

@@ -372,7 +372,7 @@ impl ConeProblem<'_> {
         }
         let tried = if ng > 0 && by_newton {
             let groups = self.newton_groups(&open, scale);
-            newton(&p_red, &q_red, &groups, cache.tol())?
+            newton(&mut p_red, &q_red, &groups, cache.tol())?
         } else {
             Newton::GaveUp { iterations: 0 }
         };

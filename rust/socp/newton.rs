@@ -30,9 +30,9 @@
 //! Hessian is not positive definite or after [`MAX_ITERATIONS`].
 
 use super::{ConeGroup, ConeProblem};
-use crate::dense::{cholesky, cholesky_solve};
+use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
-use crate::memory::try_mat;
+use crate::memory::try_vec;
 use faer::Mat;
 
 /// Most Newton iterations before the cone solver takes over.
@@ -141,19 +141,53 @@ impl Line<'_> {
     }
 }
 
-/// `P x` for the symmetric `P`.
-fn times(p: &Mat<f64>, x: &[f64]) -> Vec<f64> {
-    let n = x.len();
-    let mut out = vec![0.0; n];
-    for (j, &xj) in x.iter().enumerate() {
-        if xj != 0.0 {
-            let col = p.col(j);
-            for (i, o) in out.iter_mut().enumerate() {
-                *o += col[i] * xj;
+/// The upper triangle of a symmetric matrix, column by column (the
+/// column `j` holds rows `0..=j`).
+struct Packed(Vec<f64>);
+
+impl Packed {
+    fn of(p: &Mat<f64>) -> Result<Self> {
+        let n = p.nrows();
+        let mut v = try_vec(n * (n + 1) / 2, 0.0, "the quadratic of a Newton cone step")?;
+        let mut at = 0;
+        for j in 0..n {
+            for i in 0..=j {
+                v[at] = p[(i, j)];
+                at += 1;
+            }
+        }
+        Ok(Packed(v))
+    }
+
+    fn column(&self, j: usize) -> &[f64] {
+        let start = j * (j + 1) / 2;
+        &self.0[start..start + j + 1]
+    }
+
+    /// Write the whole symmetric matrix into `p`.
+    fn fill(&self, p: &mut Mat<f64>) {
+        for j in 0..p.ncols() {
+            for (i, &v) in self.column(j).iter().enumerate() {
+                p[(i, j)] = v;
+                p[(j, i)] = v;
             }
         }
     }
-    out
+
+    /// `P x`.
+    fn times(&self, x: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; x.len()];
+        for (j, &xj) in x.iter().enumerate() {
+            let col = self.column(j);
+            let mut dot_j = 0.0;
+            for (i, &v) in col[..j].iter().enumerate() {
+                out[i] += v * xj;
+                dot_j += v * x[i];
+            }
+            out[j] += dot_j + col[j] * xj;
+        }
+        out
+    }
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -164,7 +198,31 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// at most `tol max(1, |f|)`, `tol` at least [`FLOOR_TOL`], then one more
 /// full step: quadratically closer), or why Newton's method gave up (see
 /// the module notes); the error is [`crate::Error::OutOfMemory`] only.
-pub(super) fn newton(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], tol: f64) -> Result<Newton> {
+///
+/// The Hessians are formed and factored in `p` itself, `P` kept packed
+/// (half a dense matrix) and written back on return: at n = 16, a second
+/// dense matrix for each of the two steps solved at once (13 MB each) put
+/// the fit above its memory estimate, which counts Clarabel's program.
+pub(super) fn newton(
+    p: &mut Mat<f64>,
+    q: &[f64],
+    groups: &[NewtonGroup],
+    tol: f64,
+) -> Result<Newton> {
+    let packed = Packed::of(p)?;
+    let out = iterate(p, &packed, q, groups, tol);
+    packed.fill(p);
+    out
+}
+
+/// [`newton`]'s iterations, `p` the work space.
+fn iterate(
+    p: &mut Mat<f64>,
+    packed: &Packed,
+    q: &[f64],
+    groups: &[NewtonGroup],
+    tol: f64,
+) -> Result<Newton> {
     let n = q.len();
     let mut x = vec![0.0; n];
     // The group the last step was cut on its way to.
@@ -183,26 +241,28 @@ pub(super) fn newton(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], tol: f64) 
                 iterations: iteration,
             });
         }
-        let px = times(p, &x);
+        let px = packed.times(&x);
         let quad_grad: Vec<f64> = px.iter().zip(q).map(|(a, b)| a + b).collect();
         let mut grad = quad_grad.clone();
-        let mut h = try_mat(n, n, |i, j| p[(i, j)], "the Hessian of a Newton cone step")?;
+        // The Hessian (its lower triangle is what is factored): P, then
+        // each group's block.
+        packed.fill(p);
         for (g, &s) in groups.iter().zip(&norms) {
             let z: Vec<f64> = g.z(&x).collect();
             let c = g.weight / s;
             for (a, (&za, &aa)) in z.iter().zip(&g.alpha).enumerate() {
                 grad[g.start + a] += c * aa * za;
-                for (b, (&zb, &ab)) in z.iter().zip(&g.alpha).enumerate() {
+                for (b, (&zb, &ab)) in z.iter().zip(&g.alpha).enumerate().take(a + 1) {
                     let eye = if a == b { 1.0 } else { 0.0 };
-                    h[(g.start + a, g.start + b)] += c * aa * ab * (eye - za * zb / (s * s));
+                    p[(g.start + a, g.start + b)] += c * aa * ab * (eye - za * zb / (s * s));
                 }
             }
         }
-        let Some(l) = cholesky(h)? else {
+        if !factor_lower(p.as_mut())? {
             return Ok(gave_up);
-        };
+        }
         let mut step = Mat::from_fn(n, 1, |i, _| -grad[i]);
-        cholesky_solve(&l, step.as_mut());
+        cholesky_solve(p, step.as_mut());
         let dx: Vec<f64> = (0..n).map(|i| step[(i, 0)]).collect();
         let decrement = -dot(&grad, &dx);
         let value = 0.5 * dot(&x, &px) + dot(q, &x);
@@ -225,7 +285,7 @@ pub(super) fn newton(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], tol: f64) 
             groups,
             value,
             slope: dot(&quad_grad, &dx),
-            curvature: dot(&dx, &times(p, &dx)),
+            curvature: dot(&dx, &packed.times(&dx)),
         };
         let mut t = 1.0;
         while line.at(t) > f - ARMIJO * t * decrement {

@@ -108,7 +108,7 @@ fn the_minimiser_meets_the_optimality_conditions() {
         // x[12] is in no group: only the quadratic holds it.
         let (p, q, groups, _) = random(13, &specs(weight), seed);
         for (tol, bound) in [(1e-8, 1e-8), (1e-12, 1e-11)] {
-            let out = newton(&p, &q, &groups, tol).unwrap();
+            let out = newton(&mut p.clone(), &q, &groups, tol).unwrap();
             let (x, iterations) = solved(out).expect("Newton's method converges");
             let (_, grad) = value_and_gradient(&p, &q, &groups, &x);
             let worst = grad.amax();
@@ -122,10 +122,29 @@ fn the_minimiser_meets_the_optimality_conditions() {
 }
 
 #[test]
+fn the_quadratic_is_given_back_as_it_came_and_a_second_call_gives_the_same() {
+    let (mut p, q, groups, _) = random(13, &specs(0.05), 8);
+    let before = p.clone();
+    let first = solved(newton(&mut p, &q, &groups, 1e-8).unwrap()).unwrap();
+    for j in 0..13 {
+        for i in 0..13 {
+            assert_eq!(p[(i, j)].to_bits(), before[(i, j)].to_bits(), "({i}, {j})");
+        }
+    }
+    let second = solved(newton(&mut p, &q, &groups, 1e-8).unwrap()).unwrap();
+    assert_eq!(first.1, second.1);
+    assert!(first
+        .0
+        .iter()
+        .zip(&second.0)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+}
+
+#[test]
 fn a_looser_tolerance_stops_earlier_at_an_answer_near_the_tight_one() {
     let (p, q, groups, _) = random(13, &specs(0.05), 2);
-    let (tight, slow) = solved(newton(&p, &q, &groups, 1e-14).unwrap()).unwrap();
-    let (loose, fast) = solved(newton(&p, &q, &groups, 1e-2).unwrap()).unwrap();
+    let (tight, slow) = solved(newton(&mut p.clone(), &q, &groups, 1e-14).unwrap()).unwrap();
+    let (loose, fast) = solved(newton(&mut p.clone(), &q, &groups, 1e-2).unwrap()).unwrap();
     assert!(fast < slow, "{fast} vs {slow} iterations");
     // One full step after a decrement of 1e-2: within about the decrement's square root.
     let diff = loose
@@ -182,7 +201,7 @@ fn as_program(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>
 fn the_minimiser_is_clarabels_to_its_accuracy() {
     for (seed, weight) in [(4, 0.05), (5, 0.1)] {
         let (p, q, groups, fixed) = random(13, &specs(weight), seed);
-        let (x, _) = solved(newton(&p, &q, &groups, 1e-8).unwrap()).unwrap();
+        let (x, _) = solved(newton(&mut p.clone(), &q, &groups, 1e-8).unwrap()).unwrap();
         let reference = ConeSolver::new(1e-10)
             .run(&as_program(&p, &q, &groups, &fixed))
             .unwrap()
@@ -214,7 +233,7 @@ fn it_gives_up_when_a_group_heads_for_zero() {
     let (p, q, groups, fixed) = random(13, &s, 6);
     assert!(
         matches!(
-            newton(&p, &q, &groups, 1e-8).unwrap(),
+            newton(&mut p.clone(), &q, &groups, 1e-8).unwrap(),
             Newton::Kink { group: 0, .. }
         ),
         "the first group is named"
@@ -237,7 +256,7 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
     let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
     let keep = groups.clone();
     groups[2].beta.iter_mut().for_each(|b| *b = 0.0);
-    let at_zero = newton(&p, &q, &groups, 1e-8).unwrap();
+    let at_zero = newton(&mut p.clone(), &q, &groups, 1e-8).unwrap();
     assert!(
         matches!(
             at_zero,
@@ -249,7 +268,7 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
         "z_g = 0 at the start: {at_zero:?}"
     );
     let negative = Mat::from_fn(13, 13, |i, j| if i == j { -1.0 } else { 0.0 });
-    let indefinite = newton(&negative, &q, &keep, 1e-8).unwrap();
+    let indefinite = newton(&mut negative.clone(), &q, &keep, 1e-8).unwrap();
     assert!(
         matches!(indefinite, Newton::GaveUp { iterations: 1 }),
         "P = -I: {indefinite:?}"
@@ -257,6 +276,6 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
     // A non-finite q: no answer rather than NaN.
     let mut bad = q.clone();
     bad[3] = f64::NAN;
-    let nan = newton(&p, &bad, &keep, 1e-8).unwrap();
+    let nan = newton(&mut p.clone(), &bad, &keep, 1e-8).unwrap();
     assert!(matches!(nan, Newton::GaveUp { .. }), "NaN in q");
 }
