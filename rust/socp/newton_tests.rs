@@ -279,3 +279,33 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
     let nan = newton(&mut p.clone(), &bad, &keep, 1e-8).unwrap();
     assert!(matches!(nan, Newton::GaveUp { .. }), "NaN in q");
 }
+
+#[test]
+fn closest_is_the_smallest_norm_on_the_segment() {
+    let g = NewtonGroup {
+        start: 1,
+        alpha: vec![1.0, 2.0],
+        beta: vec![1.0, 0.0],
+        fixed_squares: 0.0,
+        weight: 1.0,
+    };
+    let x = [7.0, 0.0, 0.0];
+    let close = |dx: [f64; 3]| g.closest(&x, &dx);
+    // Through zero at t = 1/2.
+    assert!(close([0.0, -2.0, 0.0]).abs() < 1e-15);
+    // Short of zero: the end of the segment (t = 1).
+    assert!((close([0.0, -0.5, 0.0]) - 0.5).abs() < 1e-15);
+    // z(t) = (1 - 2t, t): nearest at t = 2/5, z = (0.2, 0.4).
+    let mid = close([0.0, -2.0, 0.5]);
+    assert!((mid - 0.2f64.sqrt()).abs() < 1e-15, "{mid}");
+    // Moving away: the start (t = 0); no move: the start.
+    assert!((close([0.0, 1.0, 0.0]) - 1.0).abs() < 1e-15);
+    assert!((close([0.0; 3]) - 1.0).abs() < 1e-15);
+    // The fixed entries count in the norm.
+    let fixed = NewtonGroup {
+        fixed_squares: 0.09,
+        ..g.clone()
+    };
+    let mid = fixed.closest(&x, &[0.0, -2.0, 0.5]);
+    assert!((mid - 0.29f64.sqrt()).abs() < 1e-15, "{mid}");
+}
