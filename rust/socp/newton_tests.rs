@@ -309,3 +309,26 @@ fn closest_is_the_smallest_norm_on_the_segment() {
     let mid = fixed.closest(&x, &[0.0, -2.0, 0.5]);
     assert!((mid - 0.29f64.sqrt()).abs() < 1e-15, "{mid}");
 }
+
+#[test]
+fn the_line_search_tames_a_step_that_would_run_away() {
+    // One entry, ||z|| = sqrt(1 + (5 + x)^2) with a faint quadratic: from
+    // z = 5 the full Newton step is -z (1 + z^2) = -130 (Newton's method on
+    // sqrt(1 + z^2) diverges from |z| > 1); backtracking brings it to the
+    // minimum near z = 0, where the fixed entry keeps f smooth.
+    let p = Mat::from_fn(1, 1, |_, _| 1e-3);
+    let groups = [NewtonGroup {
+        start: 0,
+        alpha: vec![1.0],
+        beta: vec![5.0],
+        fixed_squares: 1.0,
+        weight: 1.0,
+    }];
+    let (x, iterations) = solved(newton(&mut p.clone(), &[0.0], &groups, 1e-12).unwrap())
+        .expect("converges with cut steps");
+    let (_, grad) = value_and_gradient(&p, &[0.0], &groups, &x);
+    assert!(grad.amax() < 1e-11, "{:.2e}", grad.amax());
+    // The minimum: z / sqrt(1 + z^2) = -1e-3 x with z = 5 + x, near x = -5.
+    assert!((x[0] + 5.0).abs() < 0.01, "{x:?}");
+    assert!(iterations > 2, "{iterations}");
+}
