@@ -8,11 +8,14 @@ counts two costs as tied when they differ by less than :data:`NOISE_SIGMAS`
 standard deviations of the noise in V_NLS (``sqrt(M)`` for ``M`` complex
 residuals: V_NLS at the true system has mean ``M`` and standard deviation
 ``sqrt(M)``), and decides a tie by simplicity: the scheduling dependence of
-:meth:`lpvid.model.groups.GroupNorms.dependence`, then the cost.
+:meth:`lpvid.model.groups.GroupNorms.dependence`, then the cost, where
+costs within :data:`COST_TIE` of each other are equal too and the order
+in which the models were made decides (:func:`by_simplicity`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -23,9 +26,11 @@ if TYPE_CHECKING:
     from lpvid.model.lpv import LpvModel
 
 __all__ = [
+    "COST_TIE",
     "DEPENDENCE_TIE",
     "NOISE_SIGMAS",
     "VALIDATION_TIE",
+    "by_simplicity",
     "dependence",
     "identify_range",
     "noise_slack",
@@ -40,6 +45,15 @@ NOISE_SIGMAS = 2.0
 #: Scheduling dependences within this fraction of the least count as equal
 #: (then the cost decides).
 DEPENDENCE_TIE = 0.05
+
+#: Costs of equally simple models within this fraction of the lowest count
+#: as equal, and the first of them in the order given wins. Ten times the
+#: fits' stopping rule (:data:`lpvid.fit.settings.FTOL`: a fit ends when a
+#: step buys less than 1e-4 of V_NLS): starts that reach the same minimum
+#: by different routes end up to 3e-4 apart in validation V_NLS, and a
+#: 1e-12 change of the data moves a fit's end by as much, so a choice by
+#: the lower of two such costs followed the last bits of the data.
+COST_TIE = 1e-3
 
 #: Validation V_NLS within this fraction of the best counts as equal when
 #: starts are compared (:func:`lpvid.initial.choose` and the race of the
@@ -95,15 +109,45 @@ def dependence(model: LpvModel, data: FrfData) -> float:
 def simplest(dependences: Sequence[float], costs: Sequence[float]) -> int:
     """The index of the simplest of tied models: the least dependence, then the lowest cost.
 
-    Dependences within :data:`DEPENDENCE_TIE` of the least count as equal.
+    Dependences within :data:`DEPENDENCE_TIE` of the least count as equal;
+    among those, costs within :data:`COST_TIE` of the lowest count as equal
+    and the first such model in the order given wins.
 
     Examples
     --------
     >>> simplest([0.50, 0.51, 2.0], [10.0, 9.0, 1.0])
     1
+    >>> simplest([0.50, 0.51, 2.0], [10.005, 10.0, 1.0])
+    0
 
     """
-    deps = np.asarray(dependences, dtype=float)
-    least = float(deps.min())
-    near = [k for k, d in enumerate(deps) if d <= least * (1 + DEPENDENCE_TIE)]
-    return min(near, key=lambda k: (float(costs[k]), k))
+    return by_simplicity(dependences, costs)[0]
+
+
+def by_simplicity(dependences: Sequence[float], costs: Sequence[float]) -> list[int]:
+    """Indices of tied models from the simplest on: :func:`simplest` of all, then of the rest.
+
+    Dependences and costs that are not finite count as infinite.
+
+    Examples
+    --------
+    >>> by_simplicity([0.50, 0.51, 2.0, 0.2], [10.0, 9.0, 1.0, 50.0])
+    [3, 1, 0, 2]
+
+    """
+    deps = [float(d) if np.isfinite(d) else math.inf for d in dependences]
+    vals = [float(c) if np.isfinite(c) else math.inf for c in costs]
+    if len(deps) != len(vals) or not deps:
+        raise ValueError("dependences, costs: need the same length, at least one")
+    left = list(range(len(deps)))
+    order = []
+    while left:
+        least = min(deps[k] for k in left)
+        near = [k for k in left if deps[k] <= least * (1 + DEPENDENCE_TIE) or deps[k] == least]
+        lowest = min(vals[k] for k in near)
+        pick = next(
+            k for k in near if vals[k] <= lowest + COST_TIE * abs(lowest) or vals[k] == lowest
+        )
+        order.append(pick)
+        left.remove(pick)
+    return order

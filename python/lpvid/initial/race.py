@@ -27,7 +27,7 @@ from lpvid.data.frf import FrfData
 from lpvid.data.schedule import between_points
 from lpvid.fit.cost import vnls_value as vnls
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
-from lpvid.fit.judge import VALIDATION_TIE, dependence, tied
+from lpvid.fit.judge import VALIDATION_TIE, by_simplicity, dependence, tied
 from lpvid.fit.results import FitResult
 from lpvid.fit.settings import FTOL
 from lpvid.model.frozen import frozen_stable
@@ -183,9 +183,10 @@ def _rank(
 ) -> list[tuple[bool, bool, float, float, int]]:
     """Sort keys: unstable between the points last, then the (validation) V_NLS.
 
-    Runners whose V_NLS ties with the best stable one's come first, the one
-    with the least scheduling dependence (:func:`lpvid.fit.judge.dependence`)
-    ahead: as :func:`lpvid.initial.choose` ranks them, within the noise of
+    Runners whose V_NLS ties with the best stable one's come first, from
+    the simplest on (:func:`lpvid.fit.judge.by_simplicity`: the least
+    scheduling dependence, then the cost, near-ties by the runners' order):
+    as :func:`lpvid.initial.choose` ranks them, within the noise of
     the identification V_NLS, or within :data:`lpvid.fit.judge.VALIDATION_TIE`
     of the best validation V_NLS (:func:`lpvid.fit.judge.tied`).
     """
@@ -199,11 +200,15 @@ def _rank(
     stable_costs = [c if not u else math.inf for c, u in zip(costs, unstable, strict=True)]
     tolerance = None if validation is None else VALIDATION_TIE
     ties = tied(stable_costs if not all(unstable) else costs, judge.n_residuals, tolerance)
-    keys = []
-    for k, r in enumerate(runners):
-        dep = dependence(r.model, data) if ties[k] else costs[k]
-        keys.append((unstable[k], not ties[k], dep, costs[k], k))
-    return keys
+    tie = [k for k in range(len(runners)) if ties[k]]
+    place = {}
+    if tie:
+        deps = [dependence(runners[k].model, data) for k in tie]
+        order = by_simplicity(deps, [costs[k] for k in tie])
+        place = {tie[i]: float(n) for n, i in enumerate(order)}
+    return [
+        (unstable[k], not ties[k], place.get(k, costs[k]), costs[k], k) for k in range(len(runners))
+    ]
 
 
 def _advanced(runner: Runner, data: FrfData, budget: int | None) -> Runner:
