@@ -313,6 +313,18 @@ def test_local_models_carrier_supplies_p_and_lines(rng):
     assert a == b and a.info["loo_error"] == b.info["loo_error"]
 
 
+def test_candidates_without_the_leave_one_out_error_are_the_same_models(rng):
+    locs = gantry_locals(rng)
+    full = lpvid.smile_candidates(locs, GANTRY_P, GANTRY_BASIS, freqs_hz=GANTRY_FREQS)
+    quick = lpvid.smile_candidates(locs, GANTRY_P, GANTRY_BASIS, freqs_hz=GANTRY_FREQS, loo=False)
+    assert list(full) == list(quick) == list(FORMS)
+    for form in FORMS:
+        assert full[form] == quick[form]  # the same matrices, bit for bit
+        assert full[form].info["loo_error"] > 0 and quick[form].info["loo_error"] is None
+        rest = {k: v for k, v in quick[form].info.items() if k != "loo_error"}
+        assert rest == {k: v for k, v in full[form].info.items() if k != "loo_error"}
+
+
 def test_least_squares_interpolation_when_points_outnumber_the_basis(rng):
     locs = gantry_locals(rng)
     exact = lpvid.smile(locs, GANTRY_P, GANTRY_BASIS, form="modal")

@@ -319,7 +319,7 @@ def candidates_of(
 
     def smile_route(prefix: str, models: Any, shared: str) -> None:
         t0 = time.perf_counter()
-        starts = smile_candidates(models, basis=basis, forms=forms)
+        starts = smile_candidates(models, basis=basis, forms=forms, loo=False)
         build = (time.perf_counter() - t0) / max(len(starts), 1)
         failed = next(iter(starts.values())).info.get("unavailable", {}) if starts else {}
         missing = f"; forms not built: {', '.join(failed)}" if failed else ""

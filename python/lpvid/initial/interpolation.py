@@ -177,7 +177,7 @@ def _build(
     phi: NDArray[np.float64],
     Ts: float | None,
     balanced: bool,
-    z: NDArray[np.complex128],
+    z: NDArray[np.complex128] | None,
 ) -> LpvModel:
     coherent, notes = _coherent(form, models, p, Ts)
     coefs, resid = _interpolate(coherent, phi)
@@ -191,7 +191,7 @@ def _build(
         "condition": float(notes["condition"]),
         "interp_residual": resid["all"],
         "interp_residual_by_matrix": {k: resid[k] for k in "ABCD"},
-        "loo_error": _leave_one_out(form, models, phi, p, Ts, z),
+        "loo_error": None if z is None else _leave_one_out(form, models, phi, p, Ts, z),
         "n_groups": 4 * nb,
     }
     if "reference" in notes:
@@ -229,6 +229,7 @@ def smile_candidates(
     forms: Sequence[str] | None = None,
     balance: bool = True,
     freqs_hz: ArrayLike | None = None,
+    loo: bool = True,
 ) -> dict[str, LpvModel]:
     """SMILE models in every coherent form that can be built.
 
@@ -238,6 +239,11 @@ def smile_candidates(
         As in :func:`smile`.
     forms : sequence of str, optional
         Which forms to try; default all of :data:`FORMS`.
+    loo : bool
+        Give each model its leave-one-out FRF error (``info["loo_error"]``,
+        see :func:`smile`); False leaves it None and skips its cost, one
+        coherent form per interior point and form (:func:`lpvid.identify`
+        refines every form and judges the fits instead).
 
     Returns
     -------
@@ -251,7 +257,7 @@ def smile_candidates(
     for form in wanted:
         if form not in FORMS:
             raise ValueError(f"forms: unknown coherent form {form!r}; choose from {FORMS}")
-    return _candidates(local_models, p, basis, wanted, balance, freqs_hz)[0]
+    return _candidates(local_models, p, basis, wanted, balance, freqs_hz, loo)[0]
 
 
 def _candidates(
@@ -261,6 +267,7 @@ def _candidates(
     forms: Sequence[str],
     do_balance: bool,
     freqs_hz: ArrayLike | None,
+    loo: bool = True,
 ) -> tuple[dict[str, LpvModel], dict[str, str]]:
     models, pts, basis_, phi, Ts, balanced, z = _prepare(
         local_models, p, basis, freqs_hz, do_balance
@@ -269,7 +276,7 @@ def _candidates(
     failed: dict[str, str] = {}
     for form in forms:
         try:
-            out[form] = _build(form, models, pts, basis_, phi, Ts, balanced, z)
+            out[form] = _build(form, models, pts, basis_, phi, Ts, balanced, z if loo else None)
         except (CoherenceError, np.linalg.LinAlgError) as exc:
             failed[form] = str(exc)
     for m in out.values():
