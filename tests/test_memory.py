@@ -76,6 +76,17 @@ def child(code: str, limit_mb: float | None = None) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.skipif(not LINUX, reason="the large-block allocator is the Linux build's")
+def test_the_extension_keeps_freed_large_blocks_for_reuse_within_its_limit():
+    # 980 free parameters: J^T J alone is 8 * 980^2 = 7.7 MB, above the 4 MB
+    # from which the extension maps blocks whole (lpvid::memory::blocks).
+    model, data = large(n=12, points=3, lines=40)
+    fit = lpvid.fit_nls(model, data, max_iter=2, warn=False)
+    assert np.isfinite(fit.vnls)
+    kept, limit = _core._kept_blocks()
+    assert 0 < kept <= limit == 256 << 20
+
+
 def test_the_issue_case_is_refused_before_any_work(monkeypatch):
     model, data = large()
     called = []

@@ -34,6 +34,7 @@ __all__ = [
     "simulate",
     "fit_memory",
     "_fail_allocation_after",
+    "_kept_blocks",
 ]
 
 __version__: str
@@ -228,3 +229,4 @@ def fit_memory(
     pinned: bool = False,
 ) -> dict[str, int]: ...
 def _fail_allocation_after(count: int | None = None) -> None: ...
+def _kept_blocks() -> tuple[int, int] | None: ...

@@ -12,6 +12,8 @@
 //! parameters, per-line scratch). Clarabel allocates its own arrays; the
 //! cone step first checks that its estimate can be had ([`probe`]).
 
+#[cfg(target_os = "linux")]
+pub mod blocks;
 pub mod estimate;
 
 pub use crate::error::human;
@@ -89,10 +91,11 @@ pub const HUGE_PAGES_FROM: usize = 4 << 20;
 /// Ask the kernel to back `bytes` bytes at `ptr`, an allocation just made,
 /// with transparent huge pages (Linux `madvise(MADV_HUGEPAGE)`; a no-op
 /// elsewhere and for arrays below [`HUGE_PAGES_FROM`]). A fit's large
-/// arrays are fresh memory at every evaluation (the allocator hands large
-/// blocks back to the kernel), and fresh memory costs a page fault and the
-/// kernel's zeroing at its first write: one per 4 kB page, one per 2 MB
-/// huge page. Kernels whose huge pages are "madvise" only (Debian's
+/// arrays are fresh memory whenever the allocator maps them anew (the
+/// binding's allocator when it keeps no freed block of about their size,
+/// `blocks`; the system allocator above its threshold), and fresh memory
+/// costs a page fault and the kernel's zeroing at its first write: one per
+/// 4 kB page, one per 2 MB huge page. Kernels whose huge pages are "madvise" only (Debian's
 /// default) use them for these arrays and nowhere else; the contents and
 /// the memory used do not change. Measured on the n16 rung's
 /// Levenberg-Marquardt steps (`benches/bench_pages.py`, medians of 5):

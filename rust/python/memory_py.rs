@@ -70,8 +70,24 @@ fn fail_allocation_after_py(count: Option<usize>) {
     fail_allocation_after(count);
 }
 
+/// Test hook: bytes of freed large blocks the extension's allocator keeps
+/// for reuse, and the most it keeps (`crate::memory::blocks`); None where
+/// it is not in use (not Linux).
+#[pyfunction]
+#[pyo3(name = "_kept_blocks")]
+fn kept_blocks_py() -> Option<(usize, usize)> {
+    #[cfg(target_os = "linux")]
+    return Some((
+        super::ALLOCATOR.kept_bytes(),
+        crate::memory::blocks::KEEP_BYTES,
+    ));
+    #[cfg(not(target_os = "linux"))]
+    None
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fit_memory_py, m)?)?;
     m.add_function(wrap_pyfunction!(fail_allocation_after_py, m)?)?;
+    m.add_function(wrap_pyfunction!(kept_blocks_py, m)?)?;
     Ok(())
 }

@@ -13,6 +13,13 @@ mod trust_py;
 
 use pyo3::prelude::*;
 
+/// The extension's own allocations: large blocks mapped whole and reused
+/// whole, so that a run's resident memory follows its live arrays
+/// ([`crate::memory::blocks`]).
+#[cfg(target_os = "linux")]
+#[global_allocator]
+static ALLOCATOR: crate::memory::blocks::Blocks = crate::memory::blocks::Blocks::new();
+
 pyo3::create_exception!(
     _core,
     SingularModelError,
@@ -31,6 +38,8 @@ const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARG
 #[pymodule]
 #[pyo3(name = "_core")]
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    #[cfg(target_os = "linux")]
+    crate::memory::blocks::system_heaps();
     // The package version, from Cargo.toml (lpvid.__version__).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("__target_features__", TARGET_FEATURES)?;

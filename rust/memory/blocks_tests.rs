@@ -1,0 +1,232 @@
+use super::*;
+
+fn big(size: usize) -> Layout {
+    Layout::from_size_align(size, 8).expect("a valid layout")
+}
+
+/// Fill `len` bytes at `p` with `byte`.
+fn fill(p: *mut u8, len: usize, byte: u8) {
+    unsafe { ptr::write_bytes(p, byte, len) };
+}
+
+/// Whether `len` bytes at `p` all equal `byte`.
+fn all(p: *const u8, len: usize, byte: u8) -> bool {
+    unsafe { std::slice::from_raw_parts(p, len) }
+        .iter()
+        .all(|&b| b == byte)
+}
+
+#[test]
+fn small_blocks_go_to_the_system_allocator_and_are_not_kept() {
+    let a = Blocks::new();
+    let layout = big(BIG - 1);
+    let p = unsafe { a.alloc(layout) };
+    assert!(!p.is_null());
+    fill(p, layout.size(), 7);
+    unsafe { a.dealloc(p, layout) };
+    assert_eq!(a.kept_bytes(), 0);
+    // Over-aligned large blocks too.
+    let over = Layout::from_size_align(BIG, 2 * PAGE).expect("a valid layout");
+    let q = unsafe { a.alloc(over) };
+    assert!(!q.is_null() && q as usize % (2 * PAGE) == 0);
+    unsafe { a.dealloc(q, over) };
+    assert_eq!(a.kept_bytes(), 0);
+}
+
+#[test]
+fn a_freed_block_is_kept_and_handed_to_the_next_request_of_its_class() {
+    let a = Blocks::new();
+    let first = big(BIG + 1);
+    let p = unsafe { a.alloc(first) };
+    assert!(!p.is_null() && p as usize % PAGE == 0);
+    fill(p, first.size(), 1);
+    unsafe { a.dealloc(p, first) };
+    let len = class(first.size()).expect("no overflow");
+    assert_eq!(len, BIG + CLASS); // the header page and the block, in huge pages
+    assert_eq!(a.kept_bytes(), len);
+    // Another size in the same class gets the same block ...
+    let second = big(BIG + CLASS - PAGE - 8);
+    let q = unsafe { a.alloc(second) };
+    assert_eq!(q, p);
+    assert_eq!(a.kept_bytes(), 0);
+    // ... and a size in the next class a fresh one.
+    let third = big(BIG + CLASS + 8);
+    let r = unsafe { a.alloc(third) };
+    assert!(!r.is_null() && r != p);
+    unsafe {
+        a.dealloc(q, second);
+        a.dealloc(r, third);
+    }
+    assert_eq!(
+        a.kept_bytes(),
+        len + class(third.size()).expect("no overflow")
+    );
+}
+
+#[test]
+fn a_kept_block_up_to_a_quarter_larger_serves_a_request() {
+    let a = Blocks::new();
+    let size = |mb: usize| big((mb << 20) - PAGE); // a block whose mapping is `mb` MB
+    assert_eq!(class(size(10).size()), Some(10 << 20));
+    let ten = unsafe { a.alloc(size(10)) };
+    let six = unsafe { a.alloc(size(6)) };
+    unsafe {
+        a.dealloc(ten, size(10));
+        a.dealloc(six, size(6));
+    }
+    // 8 MB: the 10 MB mapping (a quarter larger), not the 6 MB one.
+    let p = unsafe { a.alloc(size(8)) };
+    assert_eq!(p, ten);
+    assert_eq!(a.kept_bytes(), 6 << 20);
+    // Again: the 6 MB one is too small, a fresh mapping.
+    let q = unsafe { a.alloc(size(8)) };
+    assert!(q != six && q != ten);
+    // The 10 MB mapping goes back whole (its header, not the request, says so).
+    unsafe { a.dealloc(p, size(8)) };
+    assert_eq!(a.kept_bytes(), (6 + 10) << 20);
+    // 6 MB: the 6 MB mapping, not the 10 MB one (two thirds larger).
+    let r = unsafe { a.alloc(size(6)) };
+    assert_eq!(r, six);
+    unsafe {
+        a.dealloc(q, size(8));
+        a.dealloc(r, size(6));
+    }
+    assert_eq!(a.kept_bytes(), (6 + 10 + 8) << 20);
+    // Mappings start on a huge page, the block one page in.
+    assert_eq!((p as usize - PAGE) % CLASS, 0);
+}
+
+#[test]
+fn a_kept_block_asked_for_zeroed_reads_zero() {
+    let a = Blocks::new();
+    let layout = big(BIG);
+    let p = unsafe { a.alloc(layout) };
+    fill(p, layout.size(), 0xAB);
+    unsafe { a.dealloc(p, layout) };
+    let q = unsafe { a.alloc_zeroed(layout) };
+    assert_eq!(q, p);
+    assert!(all(q, layout.size(), 0));
+    // A fresh mapping reads zero as well.
+    let fresh = big(3 * BIG);
+    let r = unsafe { a.alloc_zeroed(fresh) };
+    assert!(all(r, fresh.size(), 0));
+    unsafe {
+        a.dealloc(q, layout);
+        a.dealloc(r, fresh);
+    }
+}
+
+#[test]
+fn kept_blocks_stay_within_their_limits_the_oldest_given_back_first() {
+    let a = Blocks::new();
+    let layout = big(BIG);
+    let len = class(BIG).expect("no overflow");
+    // More blocks than may be kept (untouched: mapped, never resident).
+    let ptrs: Vec<*mut u8> = (0..KEEP_BLOCKS + 3)
+        .map(|_| unsafe { a.alloc(layout) })
+        .collect();
+    for &p in &ptrs {
+        unsafe { a.dealloc(p, layout) };
+        assert!(a.kept_bytes() <= KEEP_BYTES);
+    }
+    assert_eq!(a.kept_bytes(), KEEP_BLOCKS * len);
+    // The last freed comes back first; the three oldest were given back.
+    let q = unsafe { a.alloc(layout) };
+    assert_eq!(q, ptrs[ptrs.len() - 1]);
+    unsafe { a.dealloc(q, layout) };
+    // Blocks whose total passes KEEP_BYTES: the oldest leave.
+    let large = big(KEEP_BYTES / 2);
+    let x = unsafe { a.alloc(large) };
+    let y = unsafe { a.alloc(large) };
+    unsafe {
+        a.dealloc(x, large);
+        a.dealloc(y, large);
+    }
+    assert!(a.kept_bytes() <= KEEP_BYTES);
+    let z = unsafe { a.alloc(large) };
+    assert_eq!(z, y);
+    unsafe { a.dealloc(z, large) };
+    // A block larger than KEEP_BYTES is never kept.
+    let before = a.kept_bytes();
+    let huge = big(KEEP_BYTES + 1);
+    let h = unsafe { a.alloc(huge) };
+    assert!(!h.is_null());
+    unsafe { a.dealloc(h, huge) };
+    assert_eq!(a.kept_bytes(), before);
+}
+
+#[test]
+fn realloc_keeps_the_contents_across_classes_and_allocators() {
+    let a = Blocks::new();
+    let small = big(1024);
+    let p = unsafe { a.alloc(small) };
+    fill(p, small.size(), 3);
+    // Small to large: the contents move to a mapped block.
+    let first = BIG + 100;
+    let p = unsafe { a.realloc(p, small, first) };
+    assert!(all(p, small.size(), 3));
+    fill(p, first, 4);
+    // Within the class: the same block.
+    let second = BIG + CLASS - PAGE;
+    assert_eq!(class(first), class(second));
+    let q = unsafe { a.realloc(p, big(first), second) };
+    assert_eq!(q, p);
+    assert!(all(q, first, 4));
+    // To the next class: a new block with the contents, the old one kept.
+    let third = BIG + 2 * CLASS;
+    let r = unsafe { a.realloc(q, big(second), third) };
+    assert!(r != q && all(r, first, 4));
+    assert_eq!(a.kept_bytes(), class(second).expect("no overflow"));
+    // Large to small: the leading bytes, in the system allocator's block.
+    let s = unsafe { a.realloc(r, big(third), 512) };
+    assert!(all(s, 512, 4));
+    unsafe { a.dealloc(s, big(512)) };
+}
+
+#[test]
+fn blocks_used_from_several_threads_never_overlap() {
+    let a = std::sync::Arc::new(Blocks::new());
+    let threads: Vec<_> = (0..4u8)
+        .map(|t| {
+            let a = a.clone();
+            std::thread::spawn(move || {
+                for round in 0..20usize {
+                    let layout = big(BIG + (round % 3) * CLASS);
+                    let p = unsafe { a.alloc(layout) };
+                    assert!(!p.is_null());
+                    let byte = t.wrapping_mul(31).wrapping_add(round as u8);
+                    fill(p, layout.size(), byte);
+                    std::thread::yield_now();
+                    assert!(all(p, layout.size(), byte));
+                    unsafe { a.dealloc(p, layout) };
+                }
+            })
+        })
+        .collect();
+    for t in threads {
+        t.join().expect("no thread panicked");
+    }
+    assert!(a.kept_bytes() <= KEEP_BYTES);
+}
+
+#[test]
+fn release_gives_every_kept_mapping_back() {
+    let a = Blocks::new();
+    let layout = big(BIG);
+    let p = unsafe { a.alloc(layout) };
+    let q = unsafe { a.alloc(layout) };
+    unsafe {
+        a.dealloc(p, layout);
+        a.dealloc(q, layout);
+    }
+    let len = class(BIG).expect("no overflow");
+    assert_eq!(a.kept_bytes(), 2 * len);
+    assert_eq!(a.release(), 2 * len);
+    assert_eq!(a.kept_bytes(), 0);
+    assert_eq!(a.release(), 0);
+    // The next request maps afresh.
+    let r = unsafe { a.alloc(layout) };
+    assert!(!r.is_null());
+    unsafe { a.dealloc(r, layout) };
+    assert_eq!(a.kept_bytes(), len);
+}
