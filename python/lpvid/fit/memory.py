@@ -16,8 +16,8 @@ alone; other threads may take memory meanwhile) raises ``MemoryError`` with
 the size of the array, never a crash.
 
 The figure checked is :func:`resident` of the arrays' peak: half as much
-again for what the memory allocator holds back (blocks freed by one thread
-stay with it) and 64 MB for the first run in a process (:data:`RESIDENT`,
+again for what the memory allocators hold back (freed blocks kept for
+reuse) and 64 MB for the first run in a process (:data:`RESIDENT`,
 :data:`FIRST_RUN`, measured with ``benches/bench_scale.py``).
 
 In bytes, with ``P = (Nb + 1)(n + l)(n + r)`` free parameters (fewer when
@@ -70,12 +70,16 @@ __all__ = [
     "sizes_memory",
 ]
 
-#: Resident memory per byte of a run's arrays at their peak: the memory
-#: allocator keeps blocks that one thread freed for that thread, so the
-#: process grows by more than the arrays alive at once. Measured with
-#: ``benches/bench_scale.py`` (identify's own growth of the peak resident
-#: memory over the core's estimate of its arrays): 1.32-1.50 at n = 16 2x2
-#: (409-465 MB against 310 MB) and 1.37 at n = 24 3x3 (1285 against 937 MB).
+#: Resident memory per byte of a run's arrays at their peak: blocks freed
+#: and kept by the allocators for reuse (the extension's keeps up to 256 MB
+#: of its large blocks, ``rust/memory/blocks.rs``; glibc's heaps up to
+#: 16 MB at their tops) make the process grow by more than the arrays alive
+#: at once. Measured with ``benches/bench_scale.py`` (identify's own growth
+#: of the peak resident memory over the core's estimate of its arrays):
+#: 1.22-1.32 at n = 16 2x2 (379-410 MB against 310 MB) and 1.20-1.23 at
+#: n = 24 3x3 (1128-1157 against 937 MB). Before the extension allocated
+#: its large blocks itself, glibc kept them in its heaps and n = 16 grew by
+#: 371 to 794 MB from run to run.
 RESIDENT = 1.5
 
 #: What the first run in a process adds besides its arrays: modules loaded
@@ -319,9 +323,9 @@ def pipeline_memory(
     models (the subspace step: 63 MB of numpy arrays at n = 24 3x3 with
     1000 lines), SMILE and the results kept along the way are smaller.
     Against ``benches/bench_scale.py`` (identify's own growth of the peak
-    resident memory): gantry 34 MB against this 102 MB, n = 10 2x2 76
-    against 113 MB, n = 16 2x2 409-465 against 529 MB, n = 24 3x3 1285
-    against 1469 MB.
+    resident memory, 2026-11-26): gantry 15 MB against this 102 MB, n = 10
+    2x2 55 against 113 MB, n = 16 2x2 379-410 against 529 MB, n = 24 3x3
+    1128-1157 against 1469 MB.
     """
     l, r, nb = data.n_outputs, data.n_inputs, len(basis)
     sizes = _sizes(data, time_data, data.Ts is None)
