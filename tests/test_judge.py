@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from lpvid.fit.judge import COST_TIE, DEPENDENCE_TIE, by_simplicity, simplest, tied
+from lpvid.fit.judge import COST_TIE, DEPENDENCE_TIE, by_simplicity, noise_slack, simplest, tied
 
 # A margin of 1e-6 either side of each boundary: far above any last-bit difference.
 IN, OUT = 1 - 1e-6, 1 + 1e-6
@@ -50,7 +50,16 @@ def test_not_finite_values_count_as_infinite_and_bad_lengths_are_refused():
         by_simplicity([], [])
 
 
+def test_noise_slack_is_two_standard_deviations_of_v_nls():
+    assert noise_slack(0.25) == pytest.approx(1.0)  # 2 sqrt(M), below one residual too
+    assert noise_slack(10_000.0) == pytest.approx(200.0)
+    assert noise_slack(-1.0) == 0.0
+
+
 def test_tied_at_its_margins():
     floor = 10_000.0  # noise slack 2 sqrt(floor) = 200
     assert tied([1000.0, 1000.0 + 200.0 * IN, 1000.0 + 200.0 * OUT], floor) == [True, True, False]
     assert tied([1000.0, 1020.0 * IN, 1020.0 * OUT], floor, tolerance=0.02) == [True, True, False]
+    # Not finite costs never tie, and with none finite none ties.
+    assert tied([math.nan, 1000.0, math.inf], floor) == [False, True, False]
+    assert tied([math.nan, math.inf], floor) == [False, False]

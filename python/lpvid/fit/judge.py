@@ -145,9 +145,8 @@ def by_simplicity(dependences: Sequence[float], costs: Sequence[float]) -> list[
         least = min(deps[k] for k in left)
         near = [k for k in left if deps[k] <= least * (1 + DEPENDENCE_TIE) or deps[k] == least]
         lowest = min(vals[k] for k in near)
-        pick = next(
-            k for k in near if vals[k] <= lowest + COST_TIE * abs(lowest) or vals[k] == lowest
-        )
+        limit = lowest + COST_TIE * abs(lowest)  # inf when no cost is finite
+        pick = next(k for k in near if vals[k] <= limit)
         order.append(pick)
         left.remove(pick)
     return order
