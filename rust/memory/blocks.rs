@@ -6,7 +6,7 @@
 //! sizes that change as groups leave the cone program. The system
 //! allocator serves blocks below its adaptive threshold (up to 32 MB) from
 //! its heaps and keeps what they free: identical n16 runs peaked anywhere
-//! from 371 to 794 MB of resident memory for about 250 MB of live arrays,
+//! from 371 to 744 MB of resident memory for about 250 MB of live arrays,
 //! beyond the 529 MB the run was admitted on. [`Blocks`] maps every block
 //! of [`BIG`] bytes or more on its own (a header page, then the block,
 //! rounded up to whole huge pages of [`CLASS`] bytes and aligned to one),

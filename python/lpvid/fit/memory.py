@@ -76,10 +76,10 @@ __all__ = [
 #: 16 MB at their tops) make the process grow by more than the arrays alive
 #: at once. Measured with ``benches/bench_scale.py`` (identify's own growth
 #: of the peak resident memory over the core's estimate of its arrays):
-#: 1.22-1.32 at n = 16 2x2 (379-410 MB against 310 MB) and 1.20-1.23 at
+#: 1.27-1.30 at n = 16 2x2 (394-402 MB against 310 MB) and 1.20-1.23 at
 #: n = 24 3x3 (1128-1157 against 937 MB). Before the extension allocated
 #: its large blocks itself, glibc kept them in its heaps and n = 16 grew by
-#: 371 to 794 MB from run to run.
+#: 371 to 744 MB from run to run.
 RESIDENT = 1.5
 
 #: What the first run in a process adds besides its arrays: modules loaded
@@ -324,7 +324,7 @@ def pipeline_memory(
     1000 lines), SMILE and the results kept along the way are smaller.
     Against ``benches/bench_scale.py`` (identify's own growth of the peak
     resident memory, 2026-11-26): gantry 15 MB against this 102 MB, n = 10
-    2x2 55 against 113 MB, n = 16 2x2 379-410 against 529 MB, n = 24 3x3
+    2x2 55 against 113 MB, n = 16 2x2 394-402 against 529 MB, n = 24 3x3
     1128-1157 against 1469 MB.
     """
     l, r, nb = data.n_outputs, data.n_inputs, len(basis)
