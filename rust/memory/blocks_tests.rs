@@ -97,6 +97,30 @@ fn a_kept_block_up_to_a_quarter_larger_serves_a_request() {
 }
 
 #[test]
+fn taking_a_kept_block_leaves_the_others_as_they_were() {
+    let a = Blocks::new();
+    let size = |mb: usize| big((mb << 20) - PAGE); // a block whose mapping is `mb` MB
+    let [six, eight, ten] = [6, 8, 10].map(|mb| unsafe { a.alloc(size(mb)) });
+    unsafe {
+        a.dealloc(six, size(6));
+        a.dealloc(eight, size(8));
+        a.dealloc(ten, size(10));
+    }
+    // The middle one first, then the others: each exactly once.
+    assert_eq!(unsafe { a.alloc(size(8)) }, eight);
+    assert_eq!(unsafe { a.alloc(size(10)) }, ten);
+    assert_eq!(unsafe { a.alloc(size(6)) }, six);
+    assert_eq!(a.kept_bytes(), 0);
+    let fresh = unsafe { a.alloc(size(6)) };
+    assert!(![six, eight, ten].contains(&fresh));
+    unsafe {
+        for (p, mb) in [(six, 6), (eight, 8), (ten, 10), (fresh, 6)] {
+            a.dealloc(p, size(mb));
+        }
+    }
+}
+
+#[test]
 fn a_kept_block_asked_for_zeroed_reads_zero() {
     let a = Blocks::new();
     let layout = big(BIG);
