@@ -45,6 +45,12 @@ struct Kept {
 /// The binding's global allocator (see the module notes).
 pub struct Blocks {
     kept: Mutex<Kept>,
+    /// Test hook: how many of the next fresh mappings fail.
+    #[cfg(test)]
+    failing_maps: std::sync::atomic::AtomicUsize,
+    /// Test record: bytes of mappings given back to the kernel.
+    #[cfg(test)]
+    unmapped: std::sync::atomic::AtomicUsize,
 }
 
 impl Default for Blocks {
@@ -90,7 +96,36 @@ impl Blocks {
                 n: 0,
                 bytes: 0,
             }),
+            #[cfg(test)]
+            failing_maps: std::sync::atomic::AtomicUsize::new(0),
+            #[cfg(test)]
+            unmapped: std::sync::atomic::AtomicUsize::new(0),
         }
+    }
+
+    /// Give these (address, length) mappings back to the kernel.
+    fn unmap_all(&self, mappings: &[(usize, usize)]) {
+        for &(a, l) in mappings {
+            unmap(a as *mut u8, l);
+            #[cfg(test)]
+            self.unmapped
+                .fetch_add(l, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+
+    /// A fresh mapping of `len` bytes ([`map`]), or null.
+    fn map(&self, len: usize) -> *mut u8 {
+        #[cfg(test)]
+        {
+            use std::sync::atomic::Ordering::SeqCst;
+            let fail = self
+                .failing_maps
+                .fetch_update(SeqCst, SeqCst, |n| n.checked_sub(1));
+            if fail.is_ok() {
+                return ptr::null_mut();
+            }
+        }
+        map(len)
     }
 
     /// Bytes of freed blocks kept now.
@@ -107,9 +142,7 @@ impl Blocks {
             k.bytes = 0;
             (out, n)
         };
-        for &(a, l) in &out[..n] {
-            unmap(a as *mut u8, l);
-        }
+        self.unmap_all(&out[..n]);
         out[..n].iter().map(|&(_, l)| l).sum()
     }
 
@@ -132,7 +165,7 @@ impl Blocks {
     /// Keep the freed mapping at `addr` of `len` bytes, unmapping the
     /// oldest kept ones (or this one) beyond the limits.
     fn give(&self, addr: *mut u8, len: usize) {
-        let mut out = [(0usize, 0usize); KEEP_BLOCKS + 1];
+        let mut out = [(0usize, 0usize); KEEP_BLOCKS];
         let mut n_out = 0;
         {
             let mut k = self.kept.lock().unwrap_or_else(|e| e.into_inner());
@@ -155,9 +188,7 @@ impl Blocks {
             }
         }
         // The system calls outside the lock.
-        for &(a, l) in &out[..n_out] {
-            unmap(a as *mut u8, l);
-        }
+        self.unmap_all(&out[..n_out]);
     }
 
     /// A block for `layout` (a mapping's block), zeroed when asked.
@@ -168,8 +199,8 @@ impl Blocks {
         let (base, fresh) = match self.take(need) {
             Some(base) => (base, false),
             // Short of memory: what is kept goes back first.
-            None => match map(need) {
-                p if p.is_null() && self.release() > 0 => (map(need), true),
+            None => match self.map(need) {
+                p if p.is_null() && self.release() > 0 => (self.map(need), true),
                 p => (p, true),
             },
         };

@@ -1,5 +1,24 @@
 use super::*;
 
+/// Bytes `a` gave back to the kernel so far.
+fn unmapped(a: &Blocks) -> usize {
+    a.unmapped.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+/// Whether the page at `p` is mapped (`mincore` fails with ENOMEM where
+/// not). Only for blocks the test holds: a range given back may be mapped
+/// again at once by another test's thread.
+fn is_mapped(p: *mut u8) -> bool {
+    let page = (p as usize) / PAGE * PAGE;
+    let mut vec = [0u8; 1];
+    unsafe { libc::mincore(page as *mut libc::c_void, PAGE, vec.as_mut_ptr()) == 0 }
+}
+
+/// A block whose mapping is `mb` MB.
+fn of_mb(mb: usize) -> Layout {
+    big((mb << 20) - PAGE)
+}
+
 fn big(size: usize) -> Layout {
     Layout::from_size_align(size, 8).expect("a valid layout")
 }
@@ -253,4 +272,89 @@ fn release_gives_every_kept_mapping_back() {
     assert!(!r.is_null());
     unsafe { a.dealloc(r, layout) };
     assert_eq!(a.kept_bytes(), len);
+}
+
+#[test]
+fn kept_mappings_stay_mapped_and_the_others_are_given_back() {
+    let a = Blocks::new();
+    let layout = of_mb(6);
+    let ptrs: Vec<*mut u8> = (0..KEEP_BLOCKS + 2)
+        .map(|_| unsafe { a.alloc(layout) })
+        .collect();
+    for &p in &ptrs {
+        unsafe { a.dealloc(p, layout) };
+    }
+    // The two oldest went back to the kernel; the others are kept, mapped.
+    assert_eq!(unmapped(&a), 2 * (6 << 20));
+    assert!(ptrs[2..].iter().all(|&p| is_mapped(p)));
+    assert_eq!(a.release(), KEEP_BLOCKS * (6 << 20));
+    assert_eq!(unmapped(&a), (KEEP_BLOCKS + 2) * (6 << 20));
+    // A block larger than KEEP_BYTES goes back at once.
+    let huge = of_mb((KEEP_BYTES >> 20) + 2);
+    let h = unsafe { a.alloc(huge) };
+    assert!(is_mapped(h));
+    unsafe { a.dealloc(h, huge) };
+    assert_eq!(
+        unmapped(&a),
+        (KEEP_BLOCKS + 2) * (6 << 20) + KEEP_BYTES + (2 << 20)
+    );
+    assert_eq!(a.kept_bytes(), 0);
+}
+
+#[test]
+fn blocks_of_exactly_keep_bytes_in_all_are_kept() {
+    let a = Blocks::new();
+    let half = of_mb(KEEP_BYTES >> 21);
+    let x = unsafe { a.alloc(half) };
+    let y = unsafe { a.alloc(half) };
+    unsafe {
+        a.dealloc(x, half);
+        a.dealloc(y, half);
+    }
+    assert_eq!(a.kept_bytes(), KEEP_BYTES);
+    assert_eq!(unmapped(&a), 0);
+    let whole = of_mb(KEEP_BYTES >> 20);
+    let z = unsafe { a.alloc(whole) };
+    unsafe { a.dealloc(z, whole) };
+    // Kept, the two halves giving way to it.
+    assert_eq!(a.kept_bytes(), KEEP_BYTES);
+    assert_eq!(unmapped(&a), KEEP_BYTES);
+    assert_eq!(unsafe { a.alloc(whole) }, z);
+    unsafe { a.dealloc(z, whole) };
+    a.release();
+}
+
+#[test]
+fn a_kept_mapping_more_than_a_quarter_larger_is_not_used() {
+    let a = Blocks::new();
+    let ten = unsafe { a.alloc(of_mb(10)) };
+    unsafe { a.dealloc(ten, of_mb(10)) };
+    let p = unsafe { a.alloc(of_mb(6)) };
+    assert!(p != ten);
+    assert_eq!(a.kept_bytes(), 10 << 20);
+    unsafe { a.dealloc(p, of_mb(6)) };
+    a.release();
+}
+
+#[test]
+fn a_failed_mapping_gives_the_kept_ones_back_and_tries_once_more() {
+    use std::sync::atomic::Ordering::SeqCst;
+    let a = Blocks::new();
+    // Nothing kept: the failure is the caller's.
+    a.failing_maps.store(1, SeqCst);
+    assert!(unsafe { a.alloc(of_mb(6)) }.is_null());
+    // Something kept, but nothing that fits: given back, and the second try maps.
+    let ten = unsafe { a.alloc(of_mb(10)) };
+    unsafe { a.dealloc(ten, of_mb(10)) };
+    a.failing_maps.store(1, SeqCst);
+    let p = unsafe { a.alloc(of_mb(6)) };
+    assert!(!p.is_null() && is_mapped(p));
+    assert_eq!(unmapped(&a), 10 << 20);
+    assert_eq!(a.kept_bytes(), 0);
+    // Both tries failing: null, and what was kept is gone.
+    unsafe { a.dealloc(p, of_mb(6)) };
+    a.failing_maps.store(2, SeqCst);
+    assert!(unsafe { a.alloc(of_mb(8)) }.is_null());
+    assert_eq!(a.kept_bytes(), 0);
+    assert_eq!(unmapped(&a), 16 << 20);
 }
