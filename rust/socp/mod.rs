@@ -30,8 +30,10 @@
 //! **Newton first.** With the groups at zero left out, the program is
 //! usually smooth: Newton's method (`newton.rs`) minimises it in about three
 //! Cholesky factorisations where Clarabel takes about ten, and to machine
-//! precision. A group it finds heading for zero is fixed there for the next
-//! round; Clarabel solves the program when that is refuted.
+//! precision. A group it finds heading for zero it holds there, and lets go
+//! when zero is not that group's minimum (`newton.rs`). When the check
+//! puts back groups fixed at zero, Newton's method goes on from the
+//! refuted round's step; Clarabel solves the program when it gives up.
 //!
 //! A group at zero stays out even when its gradient is at or over its
 //! bound at the current point: the other groups' moves usually bring it
@@ -44,20 +46,16 @@ mod group;
 mod newton;
 mod pinned;
 mod program;
+mod round;
 
 pub use ahead::Lookahead;
 pub use group::ConeGroup;
 pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
 
-use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for};
 use crate::error::Result;
-use crate::memory::try_mat;
 use crate::objective::GaussNewton;
-use clarabel::solver::SolverStatus;
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat};
-use newton::{newton, Newton};
+use round::Method;
 
 /// A group whose relative magnitude `varphi ||theta_g + d_g||` ends below
 /// this after a cone solve is set exactly to zero (the interior-point
@@ -197,31 +195,24 @@ impl ConeProblem<'_> {
         }
         let mut iterations = 0;
         let mut solves = 0;
-        // Groups Newton's method stopped at (fixed at zero for the next round).
-        let mut kinked = vec![false; self.groups.len()];
-        let mut put_back = vec![false; self.groups.len()];
         let mut by_newton = self.newton;
+        // The last round's step (scaled) when the check refuted it: Newton's
+        // method goes on from there.
+        let mut start: Option<Vec<f64>> = None;
         for round in 0..MAX_ROUNDS {
             let curv = curvature.as_ref();
-            let round = self.solve_with(
-                mu,
-                &zero,
-                &scale,
-                curv,
-                cache,
-                by_newton && round < MAX_ROUNDS - 2,
-            )?;
+            let method = if by_newton && round < MAX_ROUNDS - 2 {
+                Method::Newton(start.take())
+            } else {
+                Method::Clarabel
+            };
+            let round = self.solve_with(mu, &zero, &scale, curv, cache, method)?;
             iterations += round.iterations;
             solves += usize::from(round.solved);
-            if let Some(k) = round.kink {
-                // The check below puts it back if zero is not optimal;
-                // then Clarabel solves the program.
-                if self.groups[k].can_vanish(self.theta) && !kinked[k] && !put_back[k] {
-                    zero[k] = true;
-                    kinked[k] = true;
-                } else {
-                    by_newton = false;
-                }
+            if round.kink.is_some() {
+                // A group on its way to zero that Newton's method cannot
+                // hold there (a fixed entry off zero): Clarabel's program.
+                by_newton = false;
                 continue;
             }
             let Some(mut d) = round.step else {
@@ -240,11 +231,10 @@ impl ConeProblem<'_> {
                 if zero[k] && g.free_norm(&grad) > self.bound(g) * (1.0 + 1e-9) {
                     zero[k] = false;
                     violated = true;
-                    put_back[k] = true;
-                    by_newton &= !kinked[k];
                 }
             }
             if violated {
+                start = Some(d.iter().zip(&scale).map(|(d, s)| d / s).collect());
                 continue;
             }
             // Groups the solver left at a negligible size are at zero.
@@ -284,173 +274,6 @@ impl ConeProblem<'_> {
         }
         d
     }
-
-    /// The cone program with the groups marked in `zero` fixed at zero.
-    ///
-    /// Free parameters outside every remaining group (the constant parts
-    /// `X(0)`) enter only the quadratic; they are eliminated first by a
-    /// Schur complement, which shrinks the dense block Clarabel works with,
-    /// and recovered after. With no group left, that elimination is the
-    /// whole solution. With `by_newton`, Newton's method first: when it
-    /// finds a group on its way to zero the round ends there (its `kink`).
-    fn solve_with(
-        &self,
-        mu: f64,
-        zero: &[bool],
-        scale: &[f64],
-        extra: Option<&Mat<f64>>,
-        cache: &mut ConeSolver,
-        by_newton: bool,
-    ) -> Result<Round> {
-        let nf = self.gn.dim();
-        let m_res = self.n_residuals;
-        let p_full = |i: usize, j: usize| {
-            let h = self.gn.gram[i + j * nf] + if i == j { mu * self.diag[i] } else { 0.0 };
-            2.0 / m_res * h * scale[i] * scale[j] + extra.map_or(0.0, |e| e[(i, j)])
-        };
-        // The fixed groups' steps in scaled variables, folded into q.
-        let d_zero = self.zero_step(zero);
-        let e_zero: Vec<(usize, f64)> = d_zero
-            .iter()
-            .enumerate()
-            .filter(|(_, &d)| d != 0.0)
-            .map(|(p, &d)| (p, d / scale[p]))
-            .collect();
-        let mut in_zero = vec![false; nf];
-        let open_index: Vec<usize> = (0..self.groups.len())
-            .filter(|&k| {
-                let g = &self.groups[k];
-                if zero[k] {
-                    g.free_positions().for_each(|p| in_zero[p] = true);
-                }
-                g.is_active() && !zero[k]
-            })
-            .collect();
-        let open: Vec<&ConeGroup> = open_index.iter().map(|&k| &self.groups[k]).collect();
-        let q_full = |i: usize| {
-            self.gn.gradient[i] / m_res * scale[i]
-                + e_zero.iter().map(|&(j, e)| p_full(i, j) * e).sum::<f64>()
-        };
-        let ng = open.len();
-        // Grouped free parameters (in group order) and the others.
-        let grouped: Vec<usize> = open.iter().flat_map(|g| g.free_positions()).collect();
-        let mut is_grouped = in_zero.clone();
-        grouped.iter().for_each(|&p| is_grouped[p] = true);
-        let others: Vec<usize> = (0..nf).filter(|&p| !is_grouped[p]).collect();
-        let nk = grouped.len();
-        let dense = "the dense block of the cone step";
-        let mut p_red = try_mat(nk, nk, |a, b| p_full(grouped[a], grouped[b]), dense)?;
-        let mut q_red: Vec<f64> = grouped.iter().map(|&p| q_full(p)).collect();
-        // Elimination: e_U = -L^-T (v + W e_G) with P_UU = L L^T, W = L^-1 P_UG, v = L^-1 q_U.
-        let mut elimination = None;
-        if !others.is_empty() {
-            let nu = others.len();
-            let p_uu = try_mat(nu, nu, |a, b| p_full(others[a], others[b]), dense)?;
-            let Some(l) = cholesky(p_uu)? else {
-                return Ok(Round::failed("the quadratic is not positive definite"));
-            };
-            let mut w = try_mat(nu, nk, |a, b| p_full(others[a], grouped[b]), dense)?;
-            let mut v = Mat::from_fn(nu, 1, |a, _| q_full(others[a]));
-            lower_solve(&l, w.as_mut());
-            lower_solve(&l, v.as_mut());
-            if nk > 0 {
-                matmul(
-                    p_red.as_mut(),
-                    Accum::Add,
-                    w.transpose(),
-                    &w,
-                    -1.0,
-                    par_for(2.0 * (nk * nk * nu) as f64),
-                );
-                let wtv = w.transpose() * &v;
-                q_red
-                    .iter_mut()
-                    .enumerate()
-                    .for_each(|(a, q)| *q -= wtv[(a, 0)]);
-            }
-            elimination = Some((l, w, v));
-        }
-        let tried = if ng > 0 && by_newton {
-            let groups = self.newton_groups(&open, scale);
-            newton(&mut p_red, &q_red, &groups, cache.tol())?
-        } else {
-            Newton::GaveUp { iterations: 0 }
-        };
-        let (x_g, status, iterations, solved) = if ng == 0 {
-            (
-                Vec::new(),
-                "Solved (every group at zero)".to_string(),
-                0,
-                false,
-            )
-        } else if let Newton::Solved { x, iterations } = tried {
-            (x, "Solved (Newton)".to_string(), iterations, true)
-        } else if let Newton::Kink { group, iterations } = tried {
-            return Ok(Round {
-                kink: Some(open_index[group]),
-                iterations,
-                ..Round::failed("a group on its way to zero")
-            });
-        } else {
-            let spent = match tried {
-                Newton::GaveUp { iterations } => iterations,
-                _ => 0,
-            };
-            let program = self.program(&open, scale, &p_red, q_red)?;
-            drop(p_red);
-            let sol = match cache.run(&program)? {
-                Ok(sol) => sol,
-                Err(why) => return Ok(Round::failed(&why)),
-            };
-            let good = matches!(
-                sol.status,
-                SolverStatus::Solved | SolverStatus::AlmostSolved
-            );
-            if !good {
-                return Ok(Round {
-                    step: None,
-                    status: format!("{:?}", sol.status),
-                    iterations: spent + sol.iterations,
-                    solved: true,
-                    kink: None,
-                });
-            }
-            (
-                sol.x[..nk].to_vec(),
-                format!("{:?}", sol.status),
-                spent + sol.iterations,
-                true,
-            )
-        };
-        let mut e = vec![0.0; nf];
-        for (a, &p) in grouped.iter().enumerate() {
-            e[p] = x_g[a];
-        }
-        for &(p, v) in &e_zero {
-            e[p] = v;
-        }
-        if let Some((l, w, v)) = elimination {
-            let e_g = Mat::from_fn(nk, 1, |a, _| x_g[a]);
-            let mut rhs = if nk > 0 { &v + &w * &e_g } else { v };
-            lower_transpose_solve(&l, rhs.as_mut());
-            for (a, &p) in others.iter().enumerate() {
-                e[p] = -rhs[(a, 0)];
-            }
-        }
-        let step: Vec<f64> = e.iter().zip(scale).map(|(x, s)| x * s).collect();
-        let finite = step.iter().all(|v| v.is_finite());
-        Ok(Round {
-            step: finite.then_some(step),
-            status: if finite {
-                status
-            } else {
-                "the step is not finite".to_string()
-            },
-            iterations,
-            solved,
-            kink: None,
-        })
-    }
 }
 
 /// Jacobi scaling of a step with damping `mu`: `P = S (2/M)(J^T J + mu D) S`
@@ -460,28 +283,6 @@ pub fn jacobi_scale(gn: &GaussNewton, diag: &[f64], mu: f64, n_residuals: f64) -
     (0..nf)
         .map(|i| 1.0 / (2.0 / n_residuals * (gn.gram[i + i * nf] + mu * diag[i])).sqrt())
         .collect()
-}
-
-/// One solve of the program with a given set of groups at zero.
-struct Round {
-    step: Option<Vec<f64>>,
-    status: String,
-    iterations: u32,
-    solved: bool,
-    /// The group Newton's method found on its way to zero (no step then).
-    kink: Option<usize>,
-}
-
-impl Round {
-    fn failed(why: &str) -> Self {
-        Round {
-            step: None,
-            status: why.to_string(),
-            iterations: 0,
-            solved: false,
-            kink: None,
-        }
-    }
 }
 
 impl ConeStep {

@@ -108,7 +108,7 @@ fn the_minimiser_meets_the_optimality_conditions() {
         // x[12] is in no group: only the quadratic holds it.
         let (p, q, groups, _) = random(13, &specs(weight), seed);
         for (tol, bound) in [(1e-8, 1e-8), (1e-12, 1e-11)] {
-            let out = newton(&mut p.clone(), &q, &groups, tol).unwrap();
+            let out = newton(&mut p.clone(), &q, &groups, tol, None).unwrap();
             let (x, iterations) = solved(out).expect("Newton's method converges");
             let (_, grad) = value_and_gradient(&p, &q, &groups, &x);
             let worst = grad.amax();
@@ -125,13 +125,13 @@ fn the_minimiser_meets_the_optimality_conditions() {
 fn the_quadratic_is_given_back_as_it_came_and_a_second_call_gives_the_same() {
     let (mut p, q, groups, _) = random(13, &specs(0.05), 8);
     let before = p.clone();
-    let first = solved(newton(&mut p, &q, &groups, 1e-8).unwrap()).unwrap();
+    let first = solved(newton(&mut p, &q, &groups, 1e-8, None).unwrap()).unwrap();
     for j in 0..13 {
         for i in 0..13 {
             assert_eq!(p[(i, j)].to_bits(), before[(i, j)].to_bits(), "({i}, {j})");
         }
     }
-    let second = solved(newton(&mut p, &q, &groups, 1e-8).unwrap()).unwrap();
+    let second = solved(newton(&mut p, &q, &groups, 1e-8, None).unwrap()).unwrap();
     assert_eq!(first.1, second.1);
     assert!(first
         .0
@@ -143,8 +143,8 @@ fn the_quadratic_is_given_back_as_it_came_and_a_second_call_gives_the_same() {
 #[test]
 fn a_looser_tolerance_stops_earlier_at_an_answer_near_the_tight_one() {
     let (p, q, groups, _) = random(13, &specs(0.05), 2);
-    let (tight, slow) = solved(newton(&mut p.clone(), &q, &groups, 1e-14).unwrap()).unwrap();
-    let (loose, fast) = solved(newton(&mut p.clone(), &q, &groups, 1e-2).unwrap()).unwrap();
+    let (tight, slow) = solved(newton(&mut p.clone(), &q, &groups, 1e-14, None).unwrap()).unwrap();
+    let (loose, fast) = solved(newton(&mut p.clone(), &q, &groups, 1e-2, None).unwrap()).unwrap();
     assert!(fast < slow, "{fast} vs {slow} iterations");
     // One full step after a decrement of 1e-2: within about the decrement's square root.
     let diff = loose
@@ -201,7 +201,7 @@ fn as_program(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>
 fn the_minimiser_is_clarabels_to_its_accuracy() {
     for (seed, weight) in [(4, 0.05), (5, 0.1)] {
         let (p, q, groups, fixed) = random(13, &specs(weight), seed);
-        let (x, _) = solved(newton(&mut p.clone(), &q, &groups, 1e-8).unwrap()).unwrap();
+        let (x, _) = solved(newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap()).unwrap();
         let reference = ConeSolver::new(1e-10)
             .run(&as_program(&p, &q, &groups, &fixed))
             .unwrap()
@@ -224,51 +224,92 @@ fn the_minimiser_is_clarabels_to_its_accuracy() {
     }
 }
 
-#[test]
-fn it_gives_up_when_a_group_heads_for_zero() {
-    // A weight far above the gradient the quadratic can oppose puts the
-    // first group's minimum at z = 0 (its subgradient condition holds there).
-    let mut s = specs(0.1);
-    s[0].weight = 50.0;
-    let (p, q, groups, fixed) = random(13, &s, 6);
-    assert!(
-        matches!(
-            newton(&mut p.clone(), &q, &groups, 1e-8).unwrap(),
-            Newton::Kink { group: 0, .. }
-        ),
-        "the first group is named"
-    );
-    // Clarabel finds that group at zero.
+/// Clarabel's minimiser of the same program, to its gap of 1e-10.
+fn clarabels(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>]) -> Vec<f64> {
     let reference = ConeSolver::new(1e-10)
-        .run(&as_program(&p, &q, &groups, &fixed))
+        .run(&as_program(p, q, groups, fixed))
         .unwrap()
         .unwrap();
-    let g = &groups[0];
-    let z: f64 = (0..4)
-        .map(|a| (g.beta[a] + g.alpha[a] * reference.x[a]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    assert!(z < 1e-6, "{z}");
+    reference.x[..q.len()].to_vec()
+}
+
+/// `||z_g||` of group `k` at `x`.
+fn group_norm(groups: &[NewtonGroup], k: usize, x: &[f64]) -> f64 {
+    groups[k].norm(x)
+}
+
+/// Newton's minimiser agrees with Clarabel's (its gap of 1e-10 bounds its
+/// error by sqrt(2e-10 / 0.1)) and is no worse (to rounding).
+fn assert_clarabels(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], x: &[f64], x_ref: &[f64]) {
+    let diff = x
+        .iter()
+        .zip(x_ref)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 5e-5, "{diff:.2e}");
+    let (f, _) = value_and_gradient(p, q, groups, x);
+    let (f_ref, _) = value_and_gradient(p, q, groups, x_ref);
+    assert!(f <= f_ref + 1e-13 * f_ref.abs(), "{f} > {f_ref}");
 }
 
 #[test]
-fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
-    let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
-    let keep = groups.clone();
+fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
+    // A weight far above the gradient the quadratic can oppose puts the
+    // first group's minimum at z = 0 (its subgradient condition holds
+    // there): Newton's method holds it at zero and converges on the rest.
+    let mut s = specs(0.1);
+    s[0].weight = 50.0;
+    let (p, q, groups, fixed) = random(13, &s, 6);
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap();
+    let (x, _) = solved(out).expect("solved with the group held at zero");
+    assert!(group_norm(&groups, 0, &x) < 1e-14);
+    let x_ref = clarabels(&p, &q, &groups, &fixed);
+    assert!(group_norm(&groups, 0, &x_ref) < 1e-6);
+    assert_clarabels(&p, &q, &groups, &x, &x_ref);
+    // Its zero is optimal: the subgradient condition at Newton's point.
+    let quad: Vec<f64> = (0..13)
+        .map(|i| q[i] + (0..13).map(|j| p[(i, j)] * x[j]).sum::<f64>())
+        .collect();
+    assert!(groups[0].zero_is_optimal(&quad));
+    // A group that cannot be held (a fixed entry off zero) is named instead.
+    let mut stuck = groups.clone();
+    stuck[0].fixed_squares = 1e-14;
+    let named = newton(&mut p.clone(), &q, &stuck, 1e-8, None).unwrap();
+    assert!(matches!(named, Newton::Kink { group: 0, .. }), "{named:?}");
+}
+
+#[test]
+fn a_group_at_zero_whose_minimum_is_not_there_is_let_go() {
+    // Group 2 starts at z = 0 (beta = 0), but with a small weight its
+    // minimum is away from zero: held at the start, let go along its
+    // steepest descent, and the minimiser is Clarabel's.
+    let (p, q, mut groups, fixed) = random(13, &specs(0.1), 7);
     groups[2].beta.iter_mut().for_each(|b| *b = 0.0);
-    let at_zero = newton(&mut p.clone(), &q, &groups, 1e-8).unwrap();
+    groups[2].weight = 0.01;
+    let x_ref = clarabels(&p, &q, &groups, &fixed);
     assert!(
-        matches!(
-            at_zero,
-            Newton::Kink {
-                group: 2,
-                iterations: 1
-            }
-        ),
-        "z_g = 0 at the start: {at_zero:?}"
+        group_norm(&groups, 2, &x_ref) > 1e-3,
+        "not a test: its minimum is at zero"
     );
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap();
+    let (x, iterations) = solved(out).expect("converges after letting go");
+    assert_clarabels(&p, &q, &groups, &x, &x_ref);
+    assert!(iterations <= 12, "{iterations}");
+    // The same from a given start: the other groups at their minimum and
+    // group 2 at zero (where a refuted check leaves them).
+    let mut start = x_ref.clone();
+    groups[2].hold(&mut start);
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, Some(start)).unwrap();
+    let (warm, from_there) = solved(out).expect("converges from the start given");
+    assert_clarabels(&p, &q, &groups, &warm, &x_ref);
+    assert!(from_there <= iterations, "{from_there} > {iterations}");
+}
+
+#[test]
+fn it_gives_up_on_a_quadratic_that_is_not_convex_and_on_nan() {
+    let (p, q, groups, _) = random(13, &specs(0.1), 7);
     let negative = Mat::from_fn(13, 13, |i, j| if i == j { -1.0 } else { 0.0 });
-    let indefinite = newton(&mut negative.clone(), &q, &keep, 1e-8).unwrap();
+    let indefinite = newton(&mut negative.clone(), &q, &groups, 1e-8, None).unwrap();
     assert!(
         matches!(indefinite, Newton::GaveUp { iterations: 1 }),
         "P = -I: {indefinite:?}"
@@ -276,7 +317,7 @@ fn it_gives_up_on_a_group_at_zero_and_on_a_quadratic_that_is_not_convex() {
     // A non-finite q: no answer rather than NaN.
     let mut bad = q.clone();
     bad[3] = f64::NAN;
-    let nan = newton(&mut p.clone(), &bad, &keep, 1e-8).unwrap();
+    let nan = newton(&mut p.clone(), &bad, &groups, 1e-8, None).unwrap();
     assert!(matches!(nan, Newton::GaveUp { .. }), "NaN in q");
 }
 
@@ -324,7 +365,7 @@ fn the_line_search_tames_a_step_that_would_run_away() {
         fixed_squares: 1.0,
         weight: 1.0,
     }];
-    let (x, iterations) = solved(newton(&mut p.clone(), &[0.0], &groups, 1e-12).unwrap())
+    let (x, iterations) = solved(newton(&mut p.clone(), &[0.0], &groups, 1e-12, None).unwrap())
         .expect("converges with cut steps");
     let (_, grad) = value_and_gradient(&p, &[0.0], &groups, &x);
     assert!(grad.amax() < 1e-11, "{:.2e}", grad.amax());

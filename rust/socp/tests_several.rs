@@ -78,7 +78,7 @@ fn cone_gradient_norm_after_first_round(c: &Case) -> f64 {
     let zero = [true, false, false];
     let mut solver = ConeSolver::new(1e-10);
     let r = cone
-        .solve_with(c.mu, &zero, &scale, None, &mut solver, true)
+        .solve_with(c.mu, &zero, &scale, None, &mut solver, Method::Newton(None))
         .unwrap();
     let g = c.gradient(&r.step.unwrap(), None);
     g[0].hypot(g[1])
@@ -95,33 +95,71 @@ fn a_resting_group_the_solution_needs_is_put_back() {
     c.gn.gradient[0] = 0.4 * c.m;
     let s = c.solve();
     assert_eq!(s.solves, 2, "{s:?}");
-    let d = s.step.unwrap();
+    let d = s.step.clone().unwrap();
     assert_optimal(&c, &d, None, 1.0);
     assert!(c.groups[0].norm_after(&c.theta, &d) > 0.01);
     let first = cone_gradient_norm_after_first_round(&c);
     assert!(first > 0.05 * (1.0 + 1e-9) && first < 1.05, "{first}");
     assert_eq!(s.zeroed, 0);
     // Iterations are the rounds' together: first with the group at zero
-    // (Newton's method), then with it back: Newton's method stops at once
-    // on that group (at zero at the start) and Clarabel solves the program.
+    // (Newton's method), then with it back, Newton's method again from the
+    // first round's step, where it lets the group go from zero along its
+    // steepest descent. From zero it does the same, in more iterations.
     let cone = c.cone();
     let scale = cone.jacobi_scale(c.mu);
-    let solve = |zero: &[bool; 3], by_newton| {
+    let solve = |zero: &[bool; 3], method| {
         let mut solver = ConeSolver::new(1e-10);
-        cone.solve_with(c.mu, zero, &scale, None, &mut solver, by_newton)
+        cone.solve_with(c.mu, zero, &scale, None, &mut solver, method)
             .unwrap()
     };
-    let first = solve(&[true, false, false], true);
+    let first = solve(&[true, false, false], Method::Newton(None));
     assert!(
         first.solved && first.status == "Solved (Newton)",
         "{}",
         first.status
     );
-    let kink = solve(&[false, false, false], true);
-    assert!(!kink.solved && kink.kink == Some(0) && kink.iterations == 1);
-    let last = solve(&[false, false, false], false);
-    assert!(last.solved && last.status.starts_with("Solved") && last.status != "Solved (Newton)");
-    assert_eq!(s.iterations, first.iterations + 1 + last.iterations);
+    let from: Vec<f64> = first
+        .step
+        .as_ref()
+        .unwrap()
+        .iter()
+        .zip(&scale)
+        .map(|(d, s)| d / s)
+        .collect();
+    let warm = solve(&[false, false, false], Method::Newton(Some(from)));
+    assert!(
+        warm.solved && warm.status == "Solved (Newton)",
+        "{}",
+        warm.status
+    );
+    assert_eq!(s.status, "Solved (Newton)");
+    assert_eq!(s.iterations, first.iterations + warm.iterations);
+    assert_eq!(s.step.as_ref(), warm.step.as_ref());
+    let cold = solve(&[false, false, false], Method::Newton(None));
+    assert!(
+        cold.solved && cold.status == "Solved (Newton)",
+        "{}",
+        cold.status
+    );
+    assert!(
+        cold.iterations > warm.iterations,
+        "{} <= {}",
+        cold.iterations,
+        warm.iterations
+    );
+    assert_optimal(&c, cold.step.as_ref().unwrap(), None, 1.0);
+    let clarabel = solve(&[false, false, false], Method::Clarabel);
+    assert!(
+        clarabel.solved
+            && clarabel.status.starts_with("Solved")
+            && clarabel.status != "Solved (Newton)"
+    );
+    let gap = d
+        .iter()
+        .zip(clarabel.step.as_ref().unwrap())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(gap < 1e-5, "{gap:.2e}");
 }
 
 #[test]
