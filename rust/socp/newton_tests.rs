@@ -373,3 +373,67 @@ fn the_line_search_tames_a_step_that_would_run_away() {
     assert!((x[0] + 5.0).abs() < 0.01, "{x:?}");
     assert!(iterations > 2, "{iterations}");
 }
+
+#[test]
+fn zero_is_optimal_up_to_the_checks_margin_of_1e_9() {
+    // One entry, alpha = 2, weight 1: w = grad / 2.
+    let g = NewtonGroup {
+        start: 0,
+        alpha: vec![2.0],
+        beta: vec![0.0],
+        fixed_squares: 0.0,
+        weight: 1.0,
+    };
+    assert!(g.zero_is_optimal(&[2.0]));
+    assert!(g.zero_is_optimal(&[-2.0 * (1.0 + 0.5e-9)]));
+    assert!(!g.zero_is_optimal(&[2.0 * (1.0 + 2e-9)]));
+    assert!(!g.zero_is_optimal(&[-3.0]));
+}
+
+#[test]
+fn release_moves_a_group_to_the_minimum_of_f_on_its_steepest_ray() {
+    // Group 2 at zero with a small weight (its zero is not optimal): the
+    // release puts z_g on the ray -t w (t > 0) at the minimum of f along
+    // it, the other entries untouched.
+    let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
+    groups[2].weight = 0.01;
+    let packed = Packed::of(&p).unwrap();
+    let mut x = vec![0.0; 13];
+    groups[2].hold(&mut x);
+    let quad = quad_gradient(&packed, &q, &x);
+    assert!(!groups[2].zero_is_optimal(&quad));
+    let w = groups[2].w(&quad);
+    let mut moved = x.clone();
+    groups[2].release(&packed, &quad, &mut moved);
+    let z: Vec<f64> = groups[2].z(&moved).collect();
+    // z = -t w: parallel and opposite, the same t for every entry.
+    let t = -z[0] / w[0];
+    assert!(t > 0.0, "{t}");
+    for (zk, wk) in z.iter().zip(&w) {
+        assert!(
+            (zk + t * wk).abs() <= 1e-12 * zk.abs().max(1e-300),
+            "{zk} vs {}",
+            -t * wk
+        );
+    }
+    assert!(moved
+        .iter()
+        .zip(&x)
+        .enumerate()
+        .all(|(i, (a, b))| groups[2].range().contains(&i) || a == b));
+    // The minimum of f on the ray: f at t (1 -/+ 1e-3) is no lower, and
+    // lower than at zero.
+    let f = |s: f64| {
+        let y: Vec<f64> = x.iter().zip(&moved).map(|(a, b)| a + s * (b - a)).collect();
+        value_and_gradient(&p, &q, &groups, &y).0
+    };
+    let here = f(1.0);
+    assert!(here < f(0.0), "no lower than at zero");
+    assert!(
+        here <= f(0.999) && here <= f(1.001),
+        "{} {} {}",
+        f(0.999),
+        here,
+        f(1.001)
+    );
+}
