@@ -261,8 +261,11 @@ fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
     s[0].weight = 50.0;
     let (p, q, groups, fixed) = random(13, &s, 6);
     let out = newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap();
-    let (x, _) = solved(out).expect("solved with the group held at zero");
+    let (x, iterations) = solved(out).expect("solved with the group held at zero");
     assert!(group_norm(&groups, 0, &x) < 1e-14);
+    // Held once two cut steps were headed for its kink: 5 iterations
+    // (without that, held only when it falls below COLLAPSE: 10).
+    assert!(iterations <= 6, "{iterations}");
     let x_ref = clarabels(&p, &q, &groups, &fixed);
     assert!(group_norm(&groups, 0, &x_ref) < 1e-6);
     assert_clarabels(&p, &q, &groups, &x, &x_ref);
@@ -436,4 +439,40 @@ fn release_moves_a_group_to_the_minimum_of_f_on_its_steepest_ray() {
         here,
         f(1.001)
     );
+}
+
+#[test]
+fn the_stopping_rule_is_relative_to_the_size_of_f() {
+    // f scaled by 10 (|f| about 2.4 at the minimum) and by 1e7 (P, q and
+    // the weights): the same iterations and the same minimiser, at a loose
+    // tolerance and a tight one.
+    let (p, q, groups, _) = random(13, &specs(0.05), 2);
+    let scaled = |k: f64| {
+        let groups: Vec<NewtonGroup> = groups
+            .iter()
+            .map(|g| NewtonGroup {
+                weight: k * g.weight,
+                ..g.clone()
+            })
+            .collect();
+        let q: Vec<f64> = q.iter().map(|v| k * v).collect();
+        (Mat::from_fn(13, 13, |i, j| k * p[(i, j)]), q, groups)
+    };
+    let (p_small, q_small, g_small) = scaled(10.0);
+    let (p_big, q_big, g_big) = scaled(1e7);
+    for tol in [1e-2, 1e-8] {
+        let (x, its) =
+            solved(newton(&mut p_small.clone(), &q_small, &g_small, tol, None).unwrap()).unwrap();
+        let (f, _) = value_and_gradient(&p_small, &q_small, &g_small, &x);
+        assert!(f.abs() > 1.0, "not a test of the relative rule: {f}");
+        let (x_big, its_big) =
+            solved(newton(&mut p_big.clone(), &q_big, &g_big, tol, None).unwrap()).unwrap();
+        assert_eq!(its, its_big, "tol {tol}");
+        let diff = x
+            .iter()
+            .zip(&x_big)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-9, "tol {tol}: {diff:.2e}");
+    }
 }
