@@ -197,33 +197,6 @@ fn as_program(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>
     }
 }
 
-#[test]
-fn the_minimiser_is_clarabels_to_its_accuracy() {
-    for (seed, weight) in [(4, 0.05), (5, 0.1)] {
-        let (p, q, groups, fixed) = random(13, &specs(weight), seed);
-        let (x, _) = solved(newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap()).unwrap();
-        let reference = ConeSolver::new(1e-10)
-            .run(&as_program(&p, &q, &groups, &fixed))
-            .unwrap()
-            .unwrap();
-        let x_ref = &reference.x[..13];
-        let diff = x
-            .iter()
-            .zip(x_ref)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
-        // Clarabel's gap of 1e-10 bounds its error by sqrt(2e-10 / 0.1).
-        assert!(diff < 5e-5, "seed {seed}: {diff:.2e}");
-        // Newton's point is no worse than Clarabel's (to rounding).
-        let (f, _) = value_and_gradient(&p, &q, &groups, &x);
-        let (f_ref, _) = value_and_gradient(&p, &q, &groups, x_ref);
-        assert!(
-            f <= f_ref + 1e-13 * f_ref.abs(),
-            "seed {seed}: {f} > {f_ref}"
-        );
-    }
-}
-
 /// Clarabel's minimiser of the same program, to its gap of 1e-10.
 fn clarabels(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>]) -> Vec<f64> {
     let reference = ConeSolver::new(1e-10)
@@ -231,11 +204,6 @@ fn clarabels(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], fixed: &[Vec<f64>]
         .unwrap()
         .unwrap();
     reference.x[..q.len()].to_vec()
-}
-
-/// `||z_g||` of group `k` at `x`.
-fn group_norm(groups: &[NewtonGroup], k: usize, x: &[f64]) -> f64 {
-    groups[k].norm(x)
 }
 
 /// Newton's minimiser agrees with Clarabel's (its gap of 1e-10 bounds its
@@ -253,6 +221,15 @@ fn assert_clarabels(p: &Mat<f64>, q: &[f64], groups: &[NewtonGroup], x: &[f64], 
 }
 
 #[test]
+fn the_minimiser_is_clarabels_to_its_accuracy() {
+    for (seed, weight) in [(4, 0.05), (5, 0.1)] {
+        let (p, q, groups, fixed) = random(13, &specs(weight), seed);
+        let (x, _) = solved(newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap()).unwrap();
+        assert_clarabels(&p, &q, &groups, &x, &clarabels(&p, &q, &groups, &fixed));
+    }
+}
+
+#[test]
 fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
     // A weight far above the gradient the quadratic can oppose puts the
     // first group's minimum at z = 0 (its subgradient condition holds
@@ -262,12 +239,12 @@ fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
     let (p, q, groups, fixed) = random(13, &s, 6);
     let out = newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap();
     let (x, iterations) = solved(out).expect("solved with the group held at zero");
-    assert!(group_norm(&groups, 0, &x) < 1e-14);
+    assert!(groups[0].norm(&x) < 1e-14);
     // Held once two cut steps were headed for its kink: 5 iterations
     // (without that, held only when it falls below COLLAPSE: 10).
     assert!(iterations <= 6, "{iterations}");
     let x_ref = clarabels(&p, &q, &groups, &fixed);
-    assert!(group_norm(&groups, 0, &x_ref) < 1e-6);
+    assert!(groups[0].norm(&x_ref) < 1e-6);
     assert_clarabels(&p, &q, &groups, &x, &x_ref);
     // Its zero is optimal: the subgradient condition at Newton's point.
     let quad: Vec<f64> = (0..13)
@@ -291,7 +268,7 @@ fn a_group_at_zero_whose_minimum_is_not_there_is_let_go() {
     groups[2].weight = 0.01;
     let x_ref = clarabels(&p, &q, &groups, &fixed);
     assert!(
-        group_norm(&groups, 2, &x_ref) > 1e-3,
+        groups[2].norm(&x_ref) > 1e-3,
         "not a test: its minimum is at zero"
     );
     let out = newton(&mut p.clone(), &q, &groups, 1e-8, None).unwrap();
