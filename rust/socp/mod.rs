@@ -209,7 +209,7 @@ impl ConeProblem<'_> {
             let round = self.solve_with(mu, &zero, &scale, curv, cache, method)?;
             iterations += round.iterations;
             solves += usize::from(round.solved);
-            if round.kink.is_some() {
+            if round.kink {
                 // A group on its way to zero that Newton's method cannot
                 // hold there (a fixed entry off zero): Clarabel's program.
                 by_newton = false;

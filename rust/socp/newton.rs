@@ -84,7 +84,7 @@ pub(super) struct NewtonGroup {
 
 impl NewtonGroup {
     fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
-        let xs = &x[self.start..self.start + self.alpha.len()];
+        let xs = &x[self.range()];
         self.alpha
             .iter()
             .zip(&self.beta)
@@ -101,7 +101,7 @@ impl NewtonGroup {
         let w: Vec<f64> = self
             .alpha
             .iter()
-            .zip(&dx[self.start..self.start + self.alpha.len()])
+            .zip(&dx[self.range()])
             .map(|(a, d)| a * d)
             .collect();
         let z: Vec<f64> = self.z(x).collect();

@@ -30,8 +30,9 @@ pub(super) struct Round {
     pub(super) iterations: u32,
     /// Whether a program was solved (false with every group at zero).
     pub(super) solved: bool,
-    /// The group Newton's method found on its way to zero (no step then).
-    pub(super) kink: Option<usize>,
+    /// Newton's method stopped at a group on its way to zero that it
+    /// cannot hold there (no step then).
+    pub(super) kink: bool,
 }
 
 impl Round {
@@ -41,7 +42,7 @@ impl Round {
             status: why.to_string(),
             iterations: 0,
             solved: false,
-            kink: None,
+            kink: false,
         }
     }
 }
@@ -150,10 +151,11 @@ impl ConeProblem<'_> {
         } else if let Newton::Solved { x, iterations } = tried {
             (x, "Solved (Newton)".to_string(), iterations, true)
         } else if let Newton::Kink { group, iterations } = tried {
+            let why = format!("group {} on its way to zero", open_index[group]);
             return Ok(Round {
-                kink: Some(open_index[group]),
+                kink: true,
                 iterations,
-                ..Round::failed("a group on its way to zero")
+                ..Round::failed(&why)
             });
         } else {
             let spent = match tried {
@@ -176,7 +178,7 @@ impl ConeProblem<'_> {
                     status: format!("{:?}", sol.status),
                     iterations: spent + sol.iterations,
                     solved: true,
-                    kink: None,
+                    kink: false,
                 });
             }
             (
@@ -212,7 +214,7 @@ impl ConeProblem<'_> {
             },
             iterations,
             solved,
-            kink: None,
+            kink: false,
         })
     }
 }
