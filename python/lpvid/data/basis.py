@@ -41,6 +41,11 @@ def _exponents(degree: int, n_params: int) -> list[tuple[int, ...]]:
     return out
 
 
+def _grid(axes: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """Every combination of the axes' values, one point a row."""
+    return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
 class Basis(ABC):
     """A set of basis functions ``psi_1..psi_Nb`` of the scheduling parameters."""
 
@@ -111,13 +116,15 @@ class Basis(ABC):
         """
         box = _domains(p_range, self.n_params, required=True)
         assert box is not None
-        per_axis = {1: 2001, 2: 101}.get(self.n_params, 11)
-        axes = [np.linspace(lo, hi, per_axis) for lo, hi in box]
-        grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
-        values = self(grid)
+        values = self(self._sup_points(box))
         if not np.all(np.isfinite(values)):
             raise ValueError("basis: a basis function is not finite on the scheduling range")
         return np.max(np.abs(values), axis=0)
+
+    def _sup_points(self, box: list[Domain]) -> NDArray[np.float64]:
+        """Where :meth:`sup_norms` looks in ``box``: a grid that holds its corners."""
+        per_axis = {1: 2001, 2: 101}.get(self.n_params, 11)
+        return _grid([np.linspace(lo, hi, per_axis) for lo, hi in box])
 
     @abstractmethod
     def to_dict(self) -> dict[str, Any]:
@@ -230,6 +237,18 @@ class Polynomial(_ScaledBasis):
             for f in factors[1:]:
                 out[:, col] *= f
         return out
+
+    def _sup_points(self, box: list[Domain]) -> NDArray[np.float64]:
+        """The corners of ``box``: each monomial is largest in size at one of them.
+
+        ``|s^e|`` grows with every ``|s_k|``, and ``|s_k|`` is largest at an
+        end of its axis (``s`` is affine in ``p``). The grid of
+        :class:`Basis` holds the corners and finds the same values bit for
+        bit (``tests/test_basis.py``), at 2001 evaluations a parameter
+        where these are 2: ``LpvModel`` checks its range this way at every
+        construction.
+        """
+        return _grid([np.array([lo, hi]) for lo, hi in box])
 
 
 class Legendre(_ScaledBasis):
