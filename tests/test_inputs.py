@@ -1,5 +1,6 @@
 """Bad input gets a ValueError or TypeError that names the argument."""
 
+import math
 import warnings
 
 import numpy as np
@@ -225,3 +226,18 @@ def test_errors_beyond_float64_come_back_as_inf_with_a_warning(rng):
         assert lpvid.vnls(model, huge) == np.inf
     with pytest.warns(RuntimeWarning, match=r"^residual: some entries are not finite"):
         assert not np.all(np.isfinite(lpvid.residual(model, huge)))
+
+
+def test_same_sample_time_is_numpys_isclose_at_1e_12_and_none_for_continuous_time():
+    from lpvid._checks import same_sample_time
+
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        a = float(10.0 ** rng.uniform(-6, 1))
+        b = a * (1.0 + float(rng.choice([0.0, 1.0, -1.0])) * 10.0 ** rng.uniform(-14, -10))
+        assert same_sample_time(a, b) == bool(np.isclose(a, b, rtol=1e-12, atol=0.0)), (a, b)
+    assert same_sample_time(5e-4, 5e-4 * (1 + 5e-13))
+    assert not same_sample_time(5e-4, 5e-4 * (1 + 2e-12))
+    assert same_sample_time(None, None)
+    assert not same_sample_time(None, 5e-4) and not same_sample_time(5e-4, None)
+    assert same_sample_time(math.inf, math.inf) and not same_sample_time(math.nan, math.nan)
