@@ -12,7 +12,7 @@ use crate::kron_gram::{GramParts, KronGram};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
-use crate::memory::try_vec;
+use crate::memory::{try_grow, try_vec};
 use crate::objective::{GaussNewton, Objective};
 use crate::response::with_constant;
 use num_complex::Complex64 as C64;
@@ -300,20 +300,25 @@ impl Problem {
         let sums: Vec<Vec<f64>> = pairs
             .par_iter()
             .map(|&(i, j)| {
-                let mut s = try_vec(lti * lti, 0.0, "the Gram sum of a pair of basis functions")?;
-                // The first term written, the others added (no pass of zeros).
-                let mut first = true;
+                let mut s = Vec::new();
+                try_grow(
+                    &mut s,
+                    lti * lti,
+                    "the Gram sum of a pair of basis functions",
+                )?;
+                // The first term written into the empty room, the others
+                // added: no pass of zeros (12.6 MB an evaluation at n = 16).
                 for (q, hq) in full.iter().enumerate().take(n_points) {
                     let c = self.psi(q)[i] * self.psi(q)[j];
                     if c != 0.0 {
-                        if first {
-                            s.iter_mut().zip(hq).for_each(|(d, h)| *d = c * h);
-                            first = false;
+                        if s.is_empty() {
+                            s.extend(hq.iter().map(|h| c * h));
                         } else {
                             s.iter_mut().zip(hq).for_each(|(d, h)| *d += c * h);
                         }
                     }
                 }
+                s.resize(lti * lti, 0.0); // every psi_qi psi_qj zero
                 Ok(s)
             })
             .collect::<Result<_>>()?;

@@ -6,6 +6,18 @@ use lpvid::{FreeSet, FrfData, Matrix, Objective, Problem, Shape};
 use num_complex::Complex64 as C64;
 
 fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
+    problem_at(n, r, l, nb, discrete, &[-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0])
+}
+
+/// [`problem`] at the scheduling points `s` (the basis `s, s^2, ...`).
+fn problem_at(
+    n: usize,
+    r: usize,
+    l: usize,
+    nb: usize,
+    discrete: bool,
+    s: &[f64],
+) -> (Problem, Vec<f64>) {
     let shape = Shape::new(n, r, l, nb).unwrap();
     let mut rng = Lcg(42 + n as u64);
     let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
@@ -13,7 +25,7 @@ fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem,
     for k in 0..n {
         theta[a0.start + k * (n + 1)] += if discrete { 0.2 } else { -1.5 };
     }
-    let n_points = 4;
+    let n_points = s.len();
     let lines = 13;
     let z: Vec<C64> = (0..lines)
         .map(|k| {
@@ -25,11 +37,9 @@ fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem,
             }
         })
         .collect();
-    let basis: Vec<f64> = (0..n_points)
-        .flat_map(|q| {
-            let s = -1.0 + 2.0 * q as f64 / (n_points - 1) as f64;
-            (1..=nb).map(move |i| s.powi(i as i32))
-        })
+    let basis: Vec<f64> = s
+        .iter()
+        .flat_map(|&s| (1..=nb).map(move |i| s.powi(i as i32)))
         .collect();
     let len = n_points * lines * l * r;
     let g: Vec<C64> = (0..len)
@@ -147,14 +157,18 @@ fn singular_model_is_an_error_not_a_panic() {
 /// otherwise, over batches of lines that do not fill the last one.
 fn check_against_rows(n: usize, r: usize, l: usize, nb: usize, discrete: bool) {
     let (p, theta) = problem(n, r, l, nb, discrete);
+    check_rows_of(&p, &theta);
+}
+
+fn check_rows_of(p: &Problem, theta: &[f64]) {
     let shape = *p.shape();
     let free = FreeSet::for_shape(&shape, None).unwrap();
-    let gn = p.gauss_newton(&theta, &free).unwrap();
+    let gn = p.gauss_newton(theta, &free).unwrap();
     let data = p.data();
     let n_points = data.n_points();
     let basis: Vec<f64> = (0..n_points).flat_map(|q| p.psi(q)[1..].to_vec()).collect();
-    let jac = lpvid::sensitivity::lti_jacobian(&shape, &theta, &basis, n_points, data.z()).unwrap();
-    let e = p.residual(&theta).unwrap();
+    let jac = lpvid::sensitivity::lti_jacobian(&shape, theta, &basis, n_points, data.z()).unwrap();
+    let e = p.residual(theta).unwrap();
     let lti = shape.lti_len();
     let rows = e.len();
     // Map every entry of theta to (basis index, LTI index).
@@ -167,7 +181,7 @@ fn check_against_rows(n: usize, r: usize, l: usize, nb: usize, discrete: bool) {
         }
     }
     let lines = data.n_lines();
-    let lr = l * r;
+    let lr = shape.l * shape.r;
     let mut want = vec![0.0; shape.len() * shape.len()];
     let mut grad = vec![0.0; shape.len()];
     for row in 0..rows {
@@ -197,6 +211,33 @@ fn check_against_rows(n: usize, r: usize, l: usize, nb: usize, discrete: bool) {
             "gradient {k}: {got} vs {w}"
         );
     }
+}
+
+/// Basis functions zero at every point (all points at s = 0): the sums of
+/// their pairs have no term, and their blocks of `J^T J` are exactly zero.
+#[test]
+fn gram_of_basis_functions_zero_at_every_point_is_zero() {
+    let (p, theta) = problem_at(2, 1, 2, 2, true, &[0.0, 0.0]);
+    check_rows_of(&p, &theta);
+    let shape = *p.shape();
+    let gn = p.gauss_newton(&theta, &FreeSet::all(shape.len())).unwrap();
+    let m = shape.len();
+    let constant: Vec<usize> = Matrix::ALL
+        .iter()
+        .flat_map(|&x| shape.block(x, 0))
+        .collect();
+    let mut nonzero = 0;
+    for v in 0..m {
+        for u in 0..m {
+            let entry = gn.gram[u + v * m];
+            if constant.contains(&u) && constant.contains(&v) {
+                nonzero += usize::from(entry != 0.0);
+            } else {
+                assert_eq!(entry, 0.0, "({u}, {v})");
+            }
+        }
+    }
+    assert!(nonzero > 0);
 }
 
 #[test]
