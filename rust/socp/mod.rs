@@ -44,6 +44,7 @@
 mod ahead;
 mod group;
 mod newton;
+mod packed;
 mod pinned;
 mod program;
 mod round;

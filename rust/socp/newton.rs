@@ -31,10 +31,10 @@
 //! definite, when a group is let go more than [`RELEASES`] times, or after
 //! [`MAX_ITERATIONS`]; the caller then has Clarabel solve the program.
 
+use super::packed::Packed;
 use super::{ConeGroup, ConeProblem};
 use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
-use crate::memory::try_vec;
 use faer::Mat;
 
 /// Most Newton iterations before the cone solver takes over.
@@ -144,55 +144,6 @@ impl Line<'_> {
         let trial: Vec<f64> = self.x.iter().zip(self.dx).map(|(x, d)| x + t * d).collect();
         let penalty: f64 = self.groups.iter().map(|g| g.weight * g.norm(&trial)).sum();
         self.value + t * self.slope + 0.5 * t * t * self.curvature + penalty
-    }
-}
-
-/// The upper triangle of a symmetric matrix, column by column (the
-/// column `j` holds rows `0..=j`).
-struct Packed(Vec<f64>);
-
-impl Packed {
-    fn of(p: &Mat<f64>) -> Result<Self> {
-        let n = p.nrows();
-        let mut v = try_vec(n * (n + 1) / 2, 0.0, "the quadratic of a Newton cone step")?;
-        let mut at = 0;
-        for j in 0..n {
-            for i in 0..=j {
-                v[at] = p[(i, j)];
-                at += 1;
-            }
-        }
-        Ok(Packed(v))
-    }
-
-    fn column(&self, j: usize) -> &[f64] {
-        let start = j * (j + 1) / 2;
-        &self.0[start..start + j + 1]
-    }
-
-    /// Write the whole symmetric matrix into `p`.
-    fn fill(&self, p: &mut Mat<f64>) {
-        for j in 0..p.ncols() {
-            for (i, &v) in self.column(j).iter().enumerate() {
-                p[(i, j)] = v;
-                p[(j, i)] = v;
-            }
-        }
-    }
-
-    /// `P x`.
-    fn times(&self, x: &[f64]) -> Vec<f64> {
-        let mut out = vec![0.0; x.len()];
-        for (j, &xj) in x.iter().enumerate() {
-            let col = self.column(j);
-            let mut dot_j = 0.0;
-            for (i, &v) in col[..j].iter().enumerate() {
-                out[i] += v * xj;
-                dot_j += v * x[i];
-            }
-            out[j] += dot_j + col[j] * xj;
-        }
-        out
     }
 }
 
@@ -354,7 +305,7 @@ fn iterate(
         // The Hessian (its lower triangle is what is factored): P, then
         // each open group's block; a held group's entries a unit row and
         // column.
-        packed.fill(p);
+        packed.fill_lower(p);
         for ((g, &s), _) in groups.iter().zip(&norms).zip(&held).filter(|(_, &h)| !h) {
             let z: Vec<f64> = g.z(&x).collect();
             let c = g.weight / s;
