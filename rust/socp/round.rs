@@ -9,7 +9,7 @@ use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for};
 use crate::error::Result;
 use crate::memory::try_mat;
 use clarabel::solver::SolverStatus;
-use faer::linalg::matmul::matmul;
+use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, Mat};
 
 /// How a round solves its program.
@@ -117,13 +117,19 @@ impl ConeProblem<'_> {
             lower_solve(&l, w.as_mut());
             lower_solve(&l, v.as_mut());
             if nk > 0 {
+                // The upper triangle only, half the flops: what Newton's
+                // method (its packed P) and Clarabel's program read; the
+                // lower triangle keeps P_GG's values.
                 matmul(
                     p_red.as_mut(),
+                    BlockStructure::TriangularUpper,
                     Accum::Add,
                     w.transpose(),
+                    BlockStructure::Rectangular,
                     &w,
+                    BlockStructure::Rectangular,
                     -1.0,
-                    par_for(2.0 * (nk * nk * nu) as f64),
+                    par_for((nk * nk * nu) as f64),
                 );
                 let wtv = w.transpose() * &v;
                 q_red
