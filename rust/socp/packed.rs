@@ -32,11 +32,9 @@ impl Packed {
     /// Write the whole symmetric matrix into `p`.
     pub(super) fn fill(&self, p: &mut Mat<f64>) {
         for j in 0..p.ncols() {
-            for (i, &v) in self.column(j).iter().enumerate() {
-                p[(i, j)] = v;
-                p[(j, i)] = v;
-            }
+            p.col_as_slice_mut(j)[..=j].copy_from_slice(self.column(j));
         }
+        self.fill_lower(p);
     }
 
     /// Write the lower triangle into `p` (all the factorisation reads), in
