@@ -38,11 +38,11 @@ impl Packed {
     }
 
     /// Write the lower triangle into `p` (all the factorisation reads), in
-    /// tiles: the lower triangle's rows are the packed columns, so that
-    /// `fill`'s transposed half, a write a whole column apart for every
-    /// entry, is read and written a tile at a time. Measured inside the core
-    /// at n = 16: forming the Hessians took 1.1 of the path's 8.6 s of
-    /// Newton solves with `fill`.
+    /// tiles: the lower triangle's rows are the packed columns, so this
+    /// half is a transpose, read and written a tile at a time. Written
+    /// entry by entry (both halves, as this module once did: one write a
+    /// whole column apart for every entry), forming the Hessians took 1.1
+    /// of the n = 16 path's 8.6 s of Newton solves.
     pub(super) fn fill_lower(&self, p: &mut Mat<f64>) {
         const TILE: usize = 32;
         let n = p.ncols();
