@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
 from lpvid._files import mat_variables, npz_arrays, read_arrays, write_atomic
+from lpvid._rows import unique_rows
 from lpvid.data.schedule import scheduling_range
 from lpvid.readers import read_experiment
 
@@ -97,7 +98,7 @@ class FrfData:
         if p_arr.ndim == 2 and p_arr.shape[1] == 0:
             raise ValueError("p: needs at least one scheduling parameter per point")
         rows = p_arr.reshape(p_arr.shape[0], -1)
-        if len(np.unique(rows, axis=0)) != rows.shape[0]:
+        if len(unique_rows(rows)[0]) != rows.shape[0]:
             raise ValueError("p: scheduling values must be distinct (found a duplicate point)")
         freqs = real_array(freqs_hz, "freqs_hz", ndim=1)
         if freqs.size == 0:

@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array
+from lpvid._rows import unique_rows
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import range_pairs
@@ -192,7 +193,7 @@ def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.floa
             f"candidates: {len(bad)} value(s) outside the scheduling range {rng}, where the "
             f"model is an extrapolation nobody fitted: {shown}{more}"
         )
-    _, first = np.unique(arr, axis=0, return_index=True)
+    _, first, _ = unique_rows(arr)
     return arr[np.sort(first)]
 
 

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int
+from lpvid._rows import unique_rows
 from lpvid.data.schedule import unit_scaled
 from lpvid.initial.localmodels import Consistency, local_p, lti_models
 from lpvid.initial.poles import describe_pole, is_real, match_poles, pole_coordinates
@@ -81,7 +82,7 @@ def consistency(
     k = 2 * n_par if neighbours is None else positive_int(neighbours, "neighbours")
     k = min(k, N - 1)
     s = unit_scaled(parr)
-    if np.unique(s, axis=0).shape[0] != N:
+    if unique_rows(s)[0].shape[0] != N:
         raise ValueError("p: scheduling values must be distinct")
     coords = [pole_coordinates(m) for m in models]
     pairs = []

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array
+from lpvid._rows import unique_rows
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import z_points
@@ -49,7 +50,7 @@ def _local_list(local_models: Any) -> tuple[list[Ss], float | None, LocalModels 
 def _check_p(arr: NDArray[np.float64], basis: Basis) -> NDArray[np.float64]:
     """Scheduling values as (N, Np), checked to be distinct and to fit the basis."""
     rows = arr.reshape(arr.shape[0], -1)
-    _, first, counts = np.unique(rows, axis=0, return_index=True, return_counts=True)
+    _, first, counts = unique_rows(rows)
     if np.any(counts > 1):
         dup = rows[first[np.argmax(counts > 1)]]
         raise ValueError(f"p: scheduling values must be distinct (duplicate point {dup.tolist()})")
