@@ -103,5 +103,5 @@ def same_sample_time(a: float | None, b: float | None) -> bool:
     if a is None or b is None:
         return a is None and b is None
     # numpy.isclose's rule (atol 0) on two floats, without its array set-up
-    # (about 30 us a call, in every model-data check of a fit).
+    # (11 us a call, 164 calls in a gantry identify).
     return bool(a == b or abs(a - b) <= 1e-12 * abs(b))

@@ -3,7 +3,7 @@
 //! and factored in the caller's matrix itself.
 
 use crate::error::Result;
-use crate::memory::try_vec;
+use crate::memory::try_grow;
 use faer::Mat;
 
 /// The upper triangle of a symmetric matrix, column by column (the
@@ -13,13 +13,14 @@ pub(super) struct Packed(Vec<f64>);
 impl Packed {
     pub(super) fn of(p: &Mat<f64>) -> Result<Self> {
         let n = p.nrows();
-        let mut v = try_vec(n * (n + 1) / 2, 0.0, "the quadratic of a Newton cone step")?;
-        let mut at = 0;
+        let mut v = Vec::new();
+        try_grow(
+            &mut v,
+            n * (n + 1) / 2,
+            "the quadratic of a Newton cone step",
+        )?;
         for j in 0..n {
-            for i in 0..=j {
-                v[at] = p[(i, j)];
-                at += 1;
-            }
+            v.extend_from_slice(&p.col_as_slice(j)[..=j]);
         }
         Ok(Packed(v))
     }
