@@ -116,15 +116,67 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
     -(gd + quad)
 }
 
-/// The evaluation at a trial point: `None` when the model cannot be
+/// An evaluation at a trial point: `None` when the model cannot be
 /// evaluated there (a rejected step), the error when the machine failed
 /// ([`crate::Error::is_fatal`]: out of memory, a bug).
-pub(crate) fn trial_point(eval: Result<GaussNewton>) -> Result<Option<GaussNewton>> {
+pub(crate) fn trial_point<T>(eval: Result<T>) -> Result<Option<T>> {
     match eval {
-        Ok(gn) => Ok(Some(gn)),
+        Ok(value) => Ok(Some(value)),
         Err(e) if e.is_fatal() => Err(e),
         Err(_) => Ok(None),
     }
+}
+
+/// What a trial point gave: its cost (`None` when the model cannot be
+/// evaluated there) and, when the step is taken, the Gauss-Newton pieces.
+pub(crate) struct Trial {
+    pub vnls: Option<f64>,
+    pub taken: Option<GaussNewton>,
+}
+
+/// Evaluate a trial point; `take(V)` says whether a step to a point of
+/// cost `V` is taken.
+///
+/// Most steps are taken (the damping follows the gain ratio), so the
+/// Gauss-Newton pieces are computed with the cost rather than after it.
+/// A `doubtful` step (a fit's first, or one after a rejection: the
+/// damping is still being found, and most such steps are rejected) has
+/// its cost computed alone first, a tenth to a fortieth of the pieces'
+/// price, and the pieces only when it is taken. Both ways give the same
+/// values ([`Objective::cost`] is the `vnls` of
+/// [`Objective::gauss_newton`] to the last bit), so the fit takes the same
+/// steps either way.
+pub(crate) fn evaluate_trial(
+    problem: &dyn Objective,
+    trial: &[f64],
+    free: &FreeSet,
+    doubtful: bool,
+    take: impl Fn(f64) -> bool,
+) -> Result<Trial> {
+    if doubtful {
+        let Some(vnls) = trial_point(problem.cost(trial))? else {
+            return Ok(Trial {
+                vnls: None,
+                taken: None,
+            });
+        };
+        if !take(vnls) {
+            return Ok(Trial {
+                vnls: Some(vnls),
+                taken: None,
+            });
+        }
+        let gn = trial_point(problem.gauss_newton(trial, free))?;
+        return Ok(Trial {
+            vnls: gn.as_ref().map(|g| g.vnls),
+            taken: gn,
+        });
+    }
+    let gn = trial_point(problem.gauss_newton(trial, free))?;
+    Ok(Trial {
+        vnls: gn.as_ref().map(|g| g.vnls),
+        taken: gn.filter(|g| take(g.vnls)),
+    })
 }
 
 /// Levenberg-Marquardt from `theta0` over the free parameters.
@@ -161,6 +213,7 @@ pub fn levenberg_marquardt(
     let mut diag = marquardt_diagonal(&gn);
     let mut damping = Damping::new(settings.lambda0);
     let mut stop = Stop::MaxIterations;
+    let mut doubtful = true;
     for _ in 0..settings.max_iter {
         if gn.gradient.iter().fold(0.0f64, |a, g| a.max(g.abs())) <= settings.gtol {
             stop = Stop::Gradient;
@@ -178,20 +231,22 @@ pub fn levenberg_marquardt(
             step_norm = norm(&d);
             let trial = free.add_step(&theta, &d);
             predicted = predicted_decrease(&gn, &d);
-            // Most steps are taken (the damping follows the gain ratio), so
-            // the Jacobian at the trial point is evaluated with its V_NLS
-            // rather than after it. A singular frozen model at the trial
-            // point is a rejected step; running out of memory is not.
-            if let Some(cand) = trial_point(problem.gauss_newton(&trial, free))? {
-                let v = cand.vnls;
-                rho = (gn.vnls - v) / predicted;
-                if v.is_finite() && v < gn.vnls && predicted > 0.0 {
-                    accepted = true;
-                    new_theta = Some((trial, cand));
-                }
+            // A singular frozen model at the trial point is a rejected
+            // step; running out of memory is not.
+            let current = gn.vnls;
+            let at = evaluate_trial(problem, &trial, free, doubtful, |v| {
+                v.is_finite() && v < current && predicted > 0.0
+            })?;
+            if let Some(v) = at.vnls {
+                rho = (current - v) / predicted;
+            }
+            if let Some(cand) = at.taken {
+                accepted = true;
+                new_theta = Some((trial, cand));
             }
         }
         damping.update(if accepted { rho } else { -1.0 });
+        doubtful = !accepted;
         let old_vnls = gn.vnls;
         let theta_norm = norm(&free.gather(&theta));
         if let Some((trial, cand)) = new_theta {

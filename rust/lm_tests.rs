@@ -105,9 +105,9 @@ fn a_failed_machine_ends_the_fit_and_a_model_that_cannot_be_evaluated_is_a_rejec
         bytes: 8,
         what: "a test",
     };
-    assert!(matches!(trial_point(Err(oom.clone())), Err(e) if e == oom));
+    assert!(matches!(trial_point::<f64>(Err(oom.clone())), Err(e) if e == oom));
     let singular = Error::Singular { point: 0, line: 1 };
-    assert!(matches!(trial_point(Err(singular)), Ok(None)));
+    assert!(matches!(trial_point::<f64>(Err(singular)), Ok(None)));
 }
 
 /// Rosenbrock's function as least squares, `r = [10 (y - x^2), 1 - x]`.
@@ -263,4 +263,36 @@ fn lm_gives_up_when_no_damping_helps_and_returns_the_start() {
     assert!(fit.history.len() < 100, "{} steps", fit.history.len());
     assert!(fit.history.iter().all(|it| !it.accepted));
     assert_eq!(fit.theta, start);
+}
+
+#[test]
+fn a_doubtful_step_is_judged_by_its_cost_alone_and_its_pieces_come_only_when_taken() {
+    let problem = Rosenbrock(crate::layout::Shape::new(1, 1, 1, 1).expect("a valid shape"));
+    let counted = crate::testing::Counted::new(&problem);
+    let settings = LmSettings {
+        lambda0: 1e-4,
+        max_iter: 500,
+        ..LmSettings::default()
+    };
+    let fit = levenberg_marquardt(
+        &counted,
+        &[-1.2, 1.0],
+        &FreeSet::all(2),
+        &settings,
+        &mut crate::fit::Silent,
+    )
+    .expect("the fit runs");
+    let h = &fit.history;
+    // Doubtful: the first step and every step after a rejection.
+    let doubtful = |k: usize| k == 0 || !h[k - 1].accepted;
+    let rejected_doubtful = (0..h.len()).filter(|&k| doubtful(k) && !h[k].accepted);
+    assert!(
+        rejected_doubtful.count() > 0,
+        "no doubtful step was rejected"
+    );
+    assert!(
+        (0..h.len()).any(|k| !doubtful(k) && !h[k].accepted),
+        "no other step was rejected"
+    );
+    assert_eq!(counted.calls(), crate::testing::expected_calls(h, doubtful));
 }

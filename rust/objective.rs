@@ -35,6 +35,9 @@ pub trait Objective: Sync {
     /// of time records). The l2,1 objective uses `V / M`.
     fn n_residuals(&self) -> usize;
     /// The cost `V(theta)`; an error when the model cannot be evaluated.
+    /// It must equal the `vnls` of [`Objective::gauss_newton`] to the last
+    /// bit (summed in the same order): the fits judge some trial points by
+    /// the cost alone and go on with the pieces' `vnls`.
     fn cost(&self, theta: &[f64]) -> Result<f64>;
     /// Cost, gradient and `J^T J` at `theta` over the free parameters.
     fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton>;

@@ -54,3 +54,84 @@ pub fn time_records(shape: &Shape, lens: &[usize], seed: u64) -> Vec<Record> {
         })
         .collect()
 }
+
+/// An objective that counts its evaluations: of the cost alone and of the
+/// Gauss-Newton pieces (the optimisers' tests).
+#[cfg(test)]
+pub struct Counted<'a> {
+    /// The objective counted.
+    pub inner: &'a dyn crate::objective::Objective,
+    /// Calls of `cost`.
+    pub costs: std::sync::atomic::AtomicUsize,
+    /// Calls of `gauss_newton`.
+    pub pieces: std::sync::atomic::AtomicUsize,
+}
+
+#[cfg(test)]
+impl<'a> Counted<'a> {
+    /// `inner`, counted from zero.
+    pub fn new(inner: &'a dyn crate::objective::Objective) -> Self {
+        Counted {
+            inner,
+            costs: Default::default(),
+            pieces: Default::default(),
+        }
+    }
+
+    /// The calls so far: `(cost, gauss_newton)`.
+    pub fn calls(&self) -> (usize, usize) {
+        use std::sync::atomic::Ordering::Relaxed;
+        (self.costs.load(Relaxed), self.pieces.load(Relaxed))
+    }
+}
+
+#[cfg(test)]
+impl crate::objective::Objective for Counted<'_> {
+    fn shape(&self) -> &Shape {
+        self.inner.shape()
+    }
+    fn n_residuals(&self) -> usize {
+        self.inner.n_residuals()
+    }
+    fn cost(&self, theta: &[f64]) -> crate::error::Result<f64> {
+        self.costs
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.cost(theta)
+    }
+    fn gauss_newton(
+        &self,
+        theta: &[f64],
+        free: &crate::layout::FreeSet,
+    ) -> crate::error::Result<crate::objective::GaussNewton> {
+        self.pieces
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.gauss_newton(theta, free)
+    }
+    fn response(&self, theta: &[f64]) -> crate::error::Result<Vec<f64>> {
+        self.inner.response(theta)
+    }
+}
+
+/// The evaluations a fit with this history should have made, `(cost,
+/// gauss_newton)`: the pieces at the start; for every solved step that is
+/// `doubtful(k)`, its cost, and its pieces when it was taken; for every
+/// other solved step, its pieces.
+#[cfg(test)]
+pub fn expected_calls(
+    history: &[crate::fit::Iteration],
+    doubtful: impl Fn(usize) -> bool,
+) -> (usize, usize) {
+    let (mut costs, mut pieces) = (0, 1);
+    for (k, it) in history.iter().enumerate() {
+        if !it.step_norm.is_finite() {
+            continue; // no step to evaluate
+        }
+        if doubtful(k) {
+            costs += 1;
+            pieces += usize::from(it.accepted);
+        } else {
+            pieces += 1;
+        }
+    }
+    (costs, pieces)
+}

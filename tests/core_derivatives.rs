@@ -268,3 +268,20 @@ fn the_response_of_a_sum_is_that_of_its_parts_one_after_the_other() {
     let cost = sum.cost(&theta).unwrap();
     assert!((v - cost).abs() <= 1e-12 * cost);
 }
+
+#[test]
+fn the_cost_is_the_vnls_of_the_gauss_newton_pieces_to_the_last_bit() {
+    // The fits judge a doubtful step by its cost alone and take the
+    // pieces' V_NLS once it is taken: the two must agree bit for bit.
+    for (n, r, l, nb, discrete) in [(3, 2, 2, 2, true), (4, 1, 3, 1, false), (2, 3, 1, 0, true)] {
+        let (p, theta) = problem(n, r, l, nb, discrete);
+        let (other, _) = problem(n, r, l, nb, !discrete);
+        let mask: Vec<bool> = (0..theta.len()).map(|i| i % 4 != 1).collect();
+        let free = FreeSet::from_mask(&mask);
+        let gn = p.gauss_newton(&theta, &free).unwrap();
+        assert_eq!(p.cost(&theta).unwrap().to_bits(), gn.vnls.to_bits());
+        let sum = lpvid::sum::Sum::new(vec![&p, &other]).unwrap();
+        let total = Objective::gauss_newton(&sum, &theta, &free).unwrap();
+        assert_eq!(sum.cost(&theta).unwrap().to_bits(), total.vnls.to_bits());
+    }
+}

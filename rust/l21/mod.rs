@@ -12,7 +12,7 @@ use crate::fit::{
 };
 use crate::layout::{FreeSet, Shape};
 use crate::lm::{
-    levenberg_marquardt, marquardt_diagonal, predicted_decrease, trial_point, LmSettings,
+    evaluate_trial, levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings,
 };
 use crate::objective::Objective;
 use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned};
@@ -255,16 +255,19 @@ pub fn fit_l21(
                 let predicted = objective
                     - (gn.vnls - predicted_decrease(&gn, d)) / m_res
                     - cone.penalty(Some(d));
-                // Most steps are taken: evaluate the Gauss-Newton pieces at the
-                // trial point at once (as Levenberg-Marquardt does).
-                if let Some(cand) = trial_point(problem.gauss_newton(&trial, free))? {
-                    let f_trial = cand.vnls / m_res + cone.penalty(Some(d));
-                    rho = (objective - f_trial) / predicted;
-                    if f_trial.is_finite() && f_trial < objective && predicted > 0.0 {
-                        accepted = true;
-                        new_objective = f_trial;
-                        new_theta = Some((trial, cand));
-                    }
+                // As Levenberg-Marquardt evaluates its trial points.
+                let penalty = cone.penalty(Some(d));
+                let at = evaluate_trial(problem, &trial, free, doubtful, |v| {
+                    let f_trial = v / m_res + penalty;
+                    f_trial.is_finite() && f_trial < objective && predicted > 0.0
+                })?;
+                if let Some(v) = at.vnls {
+                    rho = (objective - (v / m_res + penalty)) / predicted;
+                }
+                if let Some(cand) = at.taken {
+                    accepted = true;
+                    new_objective = cand.vnls / m_res + penalty;
+                    new_theta = Some((trial, cand));
                 }
             }
             damping.update(if accepted { rho } else { -1.0 });

@@ -257,6 +257,31 @@ fn a_rejected_step_raises_the_damping_and_the_reweighting_goes_on() {
     assert!(after_rejection > 0, "no step followed a rejection");
 }
 
+#[test]
+fn a_doubtful_cone_step_is_judged_by_its_cost_alone_and_its_pieces_come_only_when_taken() {
+    let (p, truth) = frf_problem();
+    let start = perturbed(&truth, 0.3, 7);
+    let s = L21Settings {
+        gamma: 1e-2,
+        lambda0: 1e-3,
+        ..L21Settings::default()
+    };
+    let counted = crate::testing::Counted::new(&p);
+    let f = fit(&counted, &start, &[1.0, 1.0], &s);
+    let h = &f.history;
+    // Doubtful: a reweighting's first step and every step after a rejection.
+    let doubtful = |k: usize| k == 0 || h[k - 1].outer != h[k].outer || !h[k - 1].accepted;
+    assert!(
+        (0..h.len()).any(|k| doubtful(k) && !h[k].accepted),
+        "no doubtful step was rejected"
+    );
+    assert!(
+        (0..h.len()).any(|k| doubtful(k) && h[k].accepted),
+        "no doubtful step was taken"
+    );
+    assert_eq!(counted.calls(), crate::testing::expected_calls(h, doubtful));
+}
+
 /// The linear problem's cost, defined only at one point and flat there
 /// (zero gradient and Gauss-Newton matrix): every trial point fails to
 /// evaluate (an error that is not fatal), so every step is rejected, and

@@ -42,6 +42,13 @@ struct Evaluated {
     residual: Vec<f64>,
 }
 
+impl Evaluated {
+    /// The record's share of the cost.
+    fn cost(&self) -> f64 {
+        self.residual.iter().map(|v| v * v).sum()
+    }
+}
+
 impl TimeProblem {
     /// Checked constructor. `hold` is the sample time of a continuous-time
     /// model (zero-order hold of `u` and `p`), None for a discrete-time
@@ -269,9 +276,18 @@ impl TimeProblem {
         Ok(out)
     }
 
-    /// The cost `sum ((y_model - y) / sigma)^2`.
+    /// The cost `sum ((y_model - y) / sigma)^2`, summed as
+    /// [`TimeProblem::gauss_newton_timed`] sums it (record by record): the
+    /// same bits.
     pub fn cost(&self, theta: &[f64]) -> Result<f64> {
-        Ok(self.residual(theta)?.iter().map(|v| v * v).sum())
+        self.shape.check_theta(theta)?;
+        let coef = Coefficients::new(&self.shape, theta);
+        let mut times = StageTimes::default();
+        let mut vnls = 0.0;
+        for k in 0..self.records.len() {
+            vnls += self.evaluate(theta, &coef, k, false, &mut times)?.cost();
+        }
+        Ok(vnls)
     }
 
     /// Cost, gradient and `J^T J` over the free parameters, with the time
@@ -300,7 +316,7 @@ impl TimeProblem {
         let mut gram = try_vec(nf * nf, 0.0, "the Gauss-Newton matrix J^T J")?;
         for k in 0..self.records.len() {
             let ev = self.evaluate(theta, &coef, k, columns.need_trajectory(), &mut times)?;
-            vnls += ev.residual.iter().map(|v| v * v).sum::<f64>();
+            vnls += ev.cost();
             if nf == 0 {
                 continue;
             }

@@ -79,3 +79,38 @@ fn gauss_newton_pieces_agree_with_the_per_row_derivative() {
         close(&what("J^T J"), &gram, &old.gram);
     }
 }
+
+#[test]
+fn the_cost_is_the_vnls_of_the_gauss_newton_pieces_to_the_last_bit() {
+    // The fits judge a doubtful step by its cost alone and take the
+    // pieces' V_NLS once it is taken: the two must agree bit for bit.
+    for (case, (discrete, initial, skip)) in [
+        (true, InitialState::Zero, 0),
+        (true, InitialState::Estimate, 4),
+        (false, InitialState::Estimate, 0),
+        (false, InitialState::Zero, 7),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let shape = Shape::new(3, 2, 2, 2).unwrap();
+        let theta = time_model(&shape, discrete, 21 + case as u64);
+        let records = time_records(&shape, &[50, 33, 41], 5 + case as u64);
+        let hold = (!discrete).then_some(0.2);
+        let problem = TimeProblem::new(shape, records, initial, hold, skip).unwrap();
+        let mask: Vec<bool> = (0..shape.len()).map(|i| i % 3 != 2).collect();
+        let gn = problem
+            .gauss_newton_timed(&theta, &FreeSet::from_mask(&mask))
+            .unwrap()
+            .0;
+        let cost = problem.cost(&theta).unwrap();
+        assert_eq!(cost.to_bits(), gn.vnls.to_bits(), "case {case}");
+        let flat: f64 = problem
+            .residual(&theta)
+            .unwrap()
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        assert!((flat - cost).abs() <= 1e-12 * cost, "case {case}");
+    }
+}
