@@ -230,16 +230,21 @@ fn the_inner_loop_stops_at_the_objective_and_step_margins() {
     }
 }
 
-#[test]
-fn a_rejected_step_raises_the_damping_and_the_reweighting_goes_on() {
+/// The FRF problem, a start 0.3 off and a small initial damping: bold
+/// first steps, some rejected.
+fn bold() -> (Problem, Vec<f64>, L21Settings) {
     let (p, truth) = frf_problem();
-    let start = perturbed(&truth, 0.3, 7);
-    // A small initial damping: bold first steps, some rejected.
     let s = L21Settings {
         gamma: 1e-2,
         lambda0: 1e-3,
         ..L21Settings::default()
     };
+    (p, perturbed(&truth, 0.3, 7), s)
+}
+
+#[test]
+fn a_rejected_step_raises_the_damping_and_the_reweighting_goes_on() {
+    let (p, start, s) = bold();
     let f = fit(&p, &start, &[1.0, 1.0], &s);
     let h = &f.history;
     let mut after_rejection = 0;
@@ -259,13 +264,7 @@ fn a_rejected_step_raises_the_damping_and_the_reweighting_goes_on() {
 
 #[test]
 fn a_doubtful_cone_step_is_judged_by_its_cost_alone_and_its_pieces_come_only_when_taken() {
-    let (p, truth) = frf_problem();
-    let start = perturbed(&truth, 0.3, 7);
-    let s = L21Settings {
-        gamma: 1e-2,
-        lambda0: 1e-3,
-        ..L21Settings::default()
-    };
+    let (p, start, s) = bold();
     let counted = crate::testing::Counted::new(&p);
     let f = fit(&counted, &start, &[1.0, 1.0], &s);
     let h = &f.history;
