@@ -55,83 +55,82 @@ pub fn time_records(shape: &Shape, lens: &[usize], seed: u64) -> Vec<Record> {
         .collect()
 }
 
-/// An objective that counts its evaluations: of the cost alone and of the
-/// Gauss-Newton pieces (the optimisers' tests).
 #[cfg(test)]
-pub struct Counted<'a> {
-    /// The objective counted.
-    pub inner: &'a dyn crate::objective::Objective,
-    /// Calls of `cost`.
-    pub costs: std::sync::atomic::AtomicUsize,
-    /// Calls of `gauss_newton`.
-    pub pieces: std::sync::atomic::AtomicUsize,
-}
+pub use counting::{expected_calls, Counted};
 
+/// Counting a fit's evaluations (the optimisers' tests).
 #[cfg(test)]
-impl<'a> Counted<'a> {
-    /// `inner`, counted from zero.
-    pub fn new(inner: &'a dyn crate::objective::Objective) -> Self {
-        Counted {
-            inner,
-            costs: Default::default(),
-            pieces: Default::default(),
+mod counting {
+    use crate::error::Result;
+    use crate::fit::Iteration;
+    use crate::layout::{FreeSet, Shape};
+    use crate::objective::{GaussNewton, Objective};
+    use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+
+    /// An objective that counts its evaluations: of the cost alone and of
+    /// the Gauss-Newton pieces.
+    pub struct Counted<'a> {
+        inner: &'a dyn Objective,
+        costs: AtomicUsize,
+        pieces: AtomicUsize,
+    }
+
+    impl<'a> Counted<'a> {
+        /// `inner`, counted from zero.
+        pub fn new(inner: &'a dyn Objective) -> Self {
+            Counted {
+                inner,
+                costs: AtomicUsize::new(0),
+                pieces: AtomicUsize::new(0),
+            }
+        }
+
+        /// The calls so far: `(cost, gauss_newton)`.
+        pub fn calls(&self) -> (usize, usize) {
+            (self.costs.load(Relaxed), self.pieces.load(Relaxed))
         }
     }
 
-    /// The calls so far: `(cost, gauss_newton)`.
-    pub fn calls(&self) -> (usize, usize) {
-        use std::sync::atomic::Ordering::Relaxed;
-        (self.costs.load(Relaxed), self.pieces.load(Relaxed))
-    }
-}
-
-#[cfg(test)]
-impl crate::objective::Objective for Counted<'_> {
-    fn shape(&self) -> &Shape {
-        self.inner.shape()
-    }
-    fn n_residuals(&self) -> usize {
-        self.inner.n_residuals()
-    }
-    fn cost(&self, theta: &[f64]) -> crate::error::Result<f64> {
-        self.costs
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        self.inner.cost(theta)
-    }
-    fn gauss_newton(
-        &self,
-        theta: &[f64],
-        free: &crate::layout::FreeSet,
-    ) -> crate::error::Result<crate::objective::GaussNewton> {
-        self.pieces
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        self.inner.gauss_newton(theta, free)
-    }
-    fn response(&self, theta: &[f64]) -> crate::error::Result<Vec<f64>> {
-        self.inner.response(theta)
-    }
-}
-
-/// The evaluations a fit with this history should have made, `(cost,
-/// gauss_newton)`: the pieces at the start; for every solved step that is
-/// `doubtful(k)`, its cost, and its pieces when it was taken; for every
-/// other solved step, its pieces.
-#[cfg(test)]
-pub fn expected_calls(
-    history: &[crate::fit::Iteration],
-    doubtful: impl Fn(usize) -> bool,
-) -> (usize, usize) {
-    let (mut costs, mut pieces) = (0, 1);
-    for (k, it) in history.iter().enumerate() {
-        if !it.step_norm.is_finite() {
-            continue; // no step to evaluate
+    impl Objective for Counted<'_> {
+        fn shape(&self) -> &Shape {
+            self.inner.shape()
         }
-        if doubtful(k) {
-            costs += 1;
-            pieces += usize::from(it.accepted);
-        } else {
-            pieces += 1;
+        fn n_residuals(&self) -> usize {
+            self.inner.n_residuals()
+        }
+        fn cost(&self, theta: &[f64]) -> Result<f64> {
+            self.costs.fetch_add(1, Relaxed);
+            self.inner.cost(theta)
+        }
+        fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
+            self.pieces.fetch_add(1, Relaxed);
+            self.inner.gauss_newton(theta, free)
+        }
+        fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {
+            self.inner.response(theta)
         }
     }
-    (costs, pieces)
+
+    /// The evaluations a fit with this history should have made, `(cost,
+    /// gauss_newton)`: the pieces at the start; for every solved step that
+    /// is `doubtful(k)`, its cost, and its pieces when it was taken; for
+    /// every other solved step, its pieces.
+    pub fn expected_calls(
+        history: &[Iteration],
+        doubtful: impl Fn(usize) -> bool,
+    ) -> (usize, usize) {
+        let (mut costs, mut pieces) = (0, 1);
+        for (k, it) in history.iter().enumerate() {
+            if !it.step_norm.is_finite() {
+                continue; // no step to evaluate
+            }
+            if doubtful(k) {
+                costs += 1;
+                pieces += usize::from(it.accepted);
+            } else {
+                pieces += 1;
+            }
+        }
+        (costs, pieces)
+    }
 }
