@@ -425,49 +425,40 @@ def test_hopeless_starts_leave_after_one_step_and_the_race_goes_on_as_before(har
     assert sum(len(c.fit.history) for c in quick) < sum(len(c.fit.history) for c in full)
 
 
-def _raced_with_unstable(data, val, local, monkeypatch, marked):
-    """The race of the hard case with the runners named in ``marked`` ranked unstable."""
+def test_a_runner_unstable_after_a_round_goes_on_while_it_is_in_the_better_half(hard, monkeypatch):
+    """Unstable runners rank last in a round, but those in the better half go on.
+
+    Where a start ends is not told by its stability after a few steps: on
+    ``benches/bench_between.py``'s ``cross3`` seed 1 the winning start is
+    unstable after the first round and stable, at a tenth of the others'
+    validation V_NLS, after the second (dropping such runners was measured:
+    see docs/performance.md). The hard case's runners are all stable; two
+    that went past the first round are ranked unstable here: one still goes
+    on, and every stable runner that went on before goes on to the same end.
+    """
     from lpvid.initial import race
 
+    data, val = hard
+    local = lpvid.identify_lti(data, 6)
+    kw = dict(validation=val, local=local)
+    first = race.ROUNDS[0]
+    plain = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    went_on = [c.name for c in plain if len(c.fit.history) > first]
+    assert len(went_on) >= 4  # two to mark, and at least `keep` stable ones beside them
+    marked = set(went_on[:2])
     rank = race._rank
 
     def marking(runners, data, validation):
         keys = rank(runners, data, validation)
         return [(k[0] or r.name in marked, *k[1:]) for r, k in zip(runners, keys, strict=True)]
 
-    with monkeypatch.context() as m:
-        m.setattr(race, "_rank", marking)
-        return initial.initial_candidates(data, 6, DAMPED_BASIS, validation=val, local=local)
-
-
-def test_unstable_runners_leave_the_race_while_enough_stable_ones_go_on(hard, monkeypatch):
-    """An unstable runner goes on only to make up the ``keep`` runners, never beside them.
-
-    The hard case's runners are all stable between the points; two of those
-    that went past the first round are ranked unstable here. They leave after
-    it, and every stable runner that went on before goes on to the same end.
-    """
-    from lpvid.initial.race import ROUNDS
-
-    data, val = hard
-    local = lpvid.identify_lti(data, 6)
-    first = ROUNDS[0]
-    plain = initial.initial_candidates(data, 6, DAMPED_BASIS, validation=val, local=local)
-    went_on = [c.name for c in plain if len(c.fit.history) > first]
-    assert len(went_on) >= 4  # two to mark, and at least `keep` stable ones beside them
-    marked = set(went_on[:2])
-    raced = _raced_with_unstable(data, val, local, monkeypatch, marked)
+    monkeypatch.setattr(race, "_rank", marking)
+    raced = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    assert any(len(c.fit.history) > first for c in raced if c.name in marked)
     for a, b in zip(plain, raced, strict=True):
-        if a.name in marked:
-            assert not b.refined and len(b.fit.history) <= first, b.name
-            assert f"after {len(b.fit.history)} steps" in b.note
-        elif a.name in went_on:
+        if a.name in went_on and a.name not in marked:
             assert len(b.fit.history) == len(a.fit.history) and b.refined == a.refined
             assert np.array_equal(a.model.theta, b.model.theta)
-    # Fewer than `keep` stable runners: unstable ones still go on to make them up.
-    names = {c.name for c in plain}
-    lone = _raced_with_unstable(data, val, local, monkeypatch, names - {went_on[0]})
-    assert sum(len(c.fit.history) > first for c in lone if c.name != went_on[0]) >= 1
 
 
 # ------------------------------------------------------------------ the easy case

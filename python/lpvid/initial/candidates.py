@@ -232,10 +232,8 @@ def initial_candidates(
         directions the data hardly see; see :func:`lpvid.fit_nls`).
     halving : bool
         Race the starts (:func:`lpvid.initial.race.race`): every start gets
-        a few steps, the worse half is dropped (and every start unstable
-        between the points while enough stable ones go on), the rest twice
-        as many, and so on, until the best few are refined to convergence
-        (default).
+        a few steps, the worse half is dropped, the rest twice as many, and
+        so on, until the best few are refined to convergence (default).
         False refines every start to convergence.
     executor : concurrent.futures.Executor, optional
         Where the independent fits run (the local models when they are

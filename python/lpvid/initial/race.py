@@ -7,10 +7,7 @@ hopeless starts (V_NLS far above the best start's, or not finite) after one
 step, gives the others a few steps, drops the worse half (unstable between
 the points first, then by validation V_NLS, or identification V_NLS without
 validation data), gives the rest twice as many steps, and so on (successive
-halving), until the best few are refined to convergence. A runner unstable
-between the points goes on only to make up the fewest runners the race
-keeps: while that many stable ones go on, it leaves with the worse half
-(the choice ranks unstable candidates last whatever their cost).
+halving), until the best few are refined to convergence.
 """
 
 from __future__ import annotations
@@ -291,9 +288,8 @@ def race(
         Ranks the runners by validation V_NLS when given.
     rounds : sequence of int
         Steps per runner in each round; after each, the worse half is dropped
-        (at least ``keep`` stay), and with it every runner unstable between
-        the points when ``keep`` stable ones stay. The runners left after
-        the last round run to convergence.
+        (at least ``keep`` stay). The runners left after the last round run
+        to convergence.
     keep : int
         Fewest runners refined to convergence.
     step : callable, optional
@@ -313,10 +309,7 @@ def race(
         finite = [k for k in keys if math.isfinite(k[3])] or keys
         counted = entered if round_ == 0 else alive  # the hopeless count in the first round
         n_keep = max(keep, math.ceil(len(counted) / 2))
-        top = finite[:n_keep]
-        if sum(not k[0] for k in top) >= keep:  # enough stable runners: no unstable one goes on
-            top = [k for k in top if not k[0]]
-        stay = {k[-1] for k in top}
+        stay = {k[-1] for k in finite[:n_keep]}
         for k, r in enumerate(alive):
             if k not in stay and not r.done:
                 r.dropped = r.steps
