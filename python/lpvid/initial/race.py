@@ -139,7 +139,9 @@ class Runner:
     @property
     def steps(self) -> int:
         """Levenberg-Marquardt steps taken in all stages."""
-        return sum(h["n_iter"] for h in self.history) + (self.fit.n_iter if self.fit else 0)
+        # A finished stage is in the history; once done, the last one is too.
+        going = self.fit.n_iter if self.fit is not None and not self.done else 0
+        return sum(h["n_iter"] for h in self.history) + going
 
     def advance(self, data: FrfData, budget: int) -> None:
         """Take up to ``budget`` more steps, moving through the stages."""

@@ -1,0 +1,134 @@
+"""How the race of the starts ranks its runners after a round (lpvid.initial.race._rank)."""
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid.fit.judge import noise_slack
+from lpvid.initial.race import Runner, Stage, _rank, race
+from lpvid.testing import noisy_data
+
+BASIS = lpvid.Polynomial(2, domain=(0.0, 1.0))
+FREQS = np.linspace(0.01, 0.45, 40)
+POINTS = [0.0, 1.0]  # between them, 0.5 is where a bump of A(p) shows
+
+
+def first_order(a) -> lpvid.LpvModel:
+    """x+ = A(p) x + u, y = x: ``a(p)`` given as a function, quadratic in p."""
+    p = np.array([0.0, 0.5, 1.0])
+    rows = np.column_stack([np.ones(3), BASIS(p)])
+    coef = np.linalg.solve(rows, a(p))
+    zeros = [[[0.0]]] * 2
+    return lpvid.LpvModel(
+        [[[c]] for c in coef], [[[1.0]], *zeros], [[[1.0]], *zeros], basis=BASIS, Ts=1.0
+    )
+
+
+@pytest.fixture(scope="module")
+def case():
+    """Data at p = 0 and 1 from A(p) = 0.5 + 0.002 p, validation at 0.25, 0.5, 0.75; the runners.
+
+    - ``simple``: A = 0.5 (no scheduling dependence), within the noise of the truth;
+    - ``truth``;
+    - ``far``: A = 0.5 + 0.1 p, stable, far above the others;
+    - ``bump``: the truth plus 4 p (1 - p): the same frozen models at the
+      points (the same identification V_NLS as the truth), unstable at 0.5.
+    """
+    truth = first_order(lambda p: 0.5 + 0.002 * p)
+    rng = np.random.default_rng(0)
+    data = noisy_data(truth, POINTS, FREQS, rng, 0.01)
+    validation = noisy_data(truth, [0.25, 0.5, 0.75], FREQS, rng, 0.01)
+    models = {
+        "far": first_order(lambda p: 0.5 + 0.1 * p),
+        "bump": first_order(lambda p: 0.5 + 0.002 * p + 4 * p * (1 - p)),
+        "truth": truth,
+        "simple": first_order(lambda p: 0.5 + 0 * p),
+    }
+    runners = [
+        Runner(name, m, [Stage("all groups", np.zeros(m.theta.size, bool))])
+        for name, m in models.items()
+    ]
+    return data, validation, runners
+
+
+def _order(runners, keys):
+    return [runners[k[-1]].name for k in sorted(keys)]
+
+
+def test_the_case_is_what_it_says(case):
+    data, _, runners = case
+    cost = {r.name: lpvid.vnls(r.model, data) for r in runners}
+    assert cost["bump"] == pytest.approx(cost["truth"], rel=1e-9)
+    assert cost["bump"] < cost["far"] / 10
+    assert 0 < cost["simple"] - cost["truth"] < noise_slack(data.n_residuals)
+
+
+def test_stable_runners_first_then_ties_by_simplicity_without_validation(case):
+    """Costs are identification V_NLS; the tie within the noise goes to the simpler."""
+    data, _, runners = case
+    keys = _rank(runners, data, None)
+    assert _order(runners, keys) == ["simple", "truth", "far", "bump"]
+    by_name = {r.name: k for r, k in zip(runners, keys, strict=True)}
+    assert [by_name[n][0] for n in ("simple", "truth", "far", "bump")] == [0, 0, 0, 1]
+    assert not by_name["simple"][1] and not by_name["truth"][1] and by_name["far"][1]
+    for r, k in zip(runners, keys, strict=True):
+        assert k[3] == lpvid.vnls(r.model, data) and k[-1] == runners.index(r)
+
+
+def test_with_validation_data_the_costs_are_validation_costs(case):
+    data, validation, runners = case
+    keys = _rank(runners, data, validation)
+    assert _order(runners, keys) == ["simple", "truth", "far", "bump"]
+    for r, k in zip(runners, keys, strict=True):
+        assert k[3] == lpvid.vnls(r.model, validation)
+
+
+def test_when_every_runner_is_unstable_the_ties_come_from_all_costs(case):
+    """No stable runner: the tie and its simplest are found among all (none left out)."""
+    data, _, runners = case
+    bump = runners[1]
+    keys = _rank([bump], data, None)
+    assert keys[0][:2] == (True, False)  # unstable, and the best of one ties with itself
+
+
+def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
+    """Six starts, two rounds of 2 steps: half leave after each, the rest converge.
+
+    Every runner either converged (not stopped by its step limit) or left
+    the race at the end of a round with the steps it had then; those that
+    left after the first round validated worse at that moment than every
+    runner that went on (the starts' bumps between the points are largest
+    where they fit the points best: by identification V_NLS the other half
+    would have left); at least ``keep`` runners converged, some of them
+    after the last round.
+    """
+    data, validation, _ = case
+    starts = [
+        first_order(lambda p, k=k: 0.502 + (0.4 - 0.07 * k) * p * (1 - p) + 0.02 * k)
+        for k in range(6)
+    ]
+    runners = [
+        Runner(f"s{k}", m, [Stage("all groups", np.zeros(m.theta.size, bool))], ftol=0.0)
+        for k, m in enumerate(starts)
+    ]
+    seen = {}  # (name, steps) -> (validation, identification V_NLS) after each round
+
+    def step(r):
+        seen[r.name, r.steps] = (lpvid.vnls(r.model, validation), lpvid.vnls(r.model, data))
+
+    race(runners, data, validation, rounds=(2, 2), keep=2, step=step)
+    ends = {2, 4}  # steps at the end of the first and the second round
+    for r in runners:
+        assert r.steps == len(r.fit.history)  # one stage: every step is in its history
+        if r.dropped is None:
+            assert r.done and r.fit.stop != "max_iterations", r.name
+        else:
+            assert not r.done and r.dropped == r.steps and r.dropped in ends, r.name
+    assert sum(r.done for r in runners) >= 2 and max(r.steps for r in runners) > max(ends)
+    left = [r.name for r in runners if r.dropped == 2]
+    went_on = [r.name for r in runners if r.dropped != 2]
+    assert len(left) == 3
+    val = {name: v[0] for (name, n), v in seen.items() if n == 2}
+    ident = {name: v[1] for (name, n), v in seen.items() if n == 2}
+    assert max(val[n] for n in went_on) < min(val[n] for n in left)
+    assert max(ident[n] for n in went_on) > min(ident[n] for n in left)
