@@ -1,11 +1,13 @@
-"""How the race of the starts ranks its runners after a round (lpvid.initial.race._rank)."""
+"""The race of the starts (lpvid.initial.race): ranking, rounds, merged fits."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import lpvid
 from lpvid.fit.judge import noise_slack
-from lpvid.initial.race import Runner, Stage, _rank, race
+from lpvid.initial.race import Runner, Stage, _rank, merge, race
 from lpvid.testing import noisy_data
 
 BASIS = lpvid.Polynomial(2, domain=(0.0, 1.0))
@@ -71,6 +73,7 @@ def test_stable_runners_first_then_ties_by_simplicity_without_validation(case):
     by_name = {r.name: k for r, k in zip(runners, keys, strict=True)}
     assert [by_name[n][0] for n in ("simple", "truth", "far", "bump")] == [0, 0, 0, 1]
     assert not by_name["simple"][1] and not by_name["truth"][1] and by_name["far"][1]
+    assert by_name["bump"][1]  # its cost ties the best, but only stable runners tie
     for r, k in zip(runners, keys, strict=True):
         assert k[3] == lpvid.vnls(r.model, data) and k[-1] == runners.index(r)
 
@@ -132,3 +135,24 @@ def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
     ident = {name: v[1] for (name, n), v in seen.items() if n == 2}
     assert max(val[n] for n in went_on) < min(val[n] for n in left)
     assert max(ident[n] for n in went_on) > min(ident[n] for n in left)
+
+
+def test_two_runs_merge_into_one(case):
+    """A runner's fit over several rounds: one history, its sums, the last run's model."""
+    data, _, runners = case
+    start = runners[0].model  # far from the optimum: steps to take
+    a = lpvid.fit_nls(start, data, max_iter=2, warn=False)
+    b = lpvid.fit_nls(a.model, data, max_iter=3, warn=False)
+    # This convex case rejects no step: counts of their own, to see them add up.
+    a, b = replace(a, n_rejected=2), replace(b, n_rejected=3)
+    m = merge(a, b)
+    assert merge(None, b) is b
+    assert m.history == a.history + b.history
+    assert m.model is b.model and m.vnls == b.vnls and m.objective == b.objective
+    assert m.noise_floor == b.noise_floor and m.converged == b.converged
+    assert m.stop == b.stop and m.message == b.message and m.interrupted == b.interrupted
+    assert m.n_rejected == a.n_rejected + b.n_rejected
+    assert m.timings["total_s"] == a.timings["total_s"] + b.timings["total_s"]
+    lm = [r["seconds"] for r in m.history]
+    assert m.timings["lm_iter_s"] == pytest.approx(np.mean(lm), rel=1e-12)
+    assert np.isnan(m.timings["socp_iter_s"])
