@@ -119,7 +119,7 @@ def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
     def step(r):
         seen[r.name, r.steps] = (lpvid.vnls(r.model, validation), lpvid.vnls(r.model, data))
 
-    race(runners, data, validation, rounds=(2, 2), keep=2, step=step)
+    assert race(runners, data, validation, rounds=(2, 2), keep=2, step=step) == runners
     ends = {2, 4}  # steps at the end of the first and the second round
     for r in runners:
         assert r.steps == len(r.fit.history)  # one stage: every step is in its history
@@ -130,7 +130,7 @@ def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
     assert sum(r.done for r in runners) >= 2 and max(r.steps for r in runners) > max(ends)
     left = [r.name for r in runners if r.dropped == 2]
     went_on = [r.name for r in runners if r.dropped != 2]
-    assert len(left) == 3
+    assert len(left) == 3 and any(r.dropped == 4 for r in runners)  # and some after the second
     val = {name: v[0] for (name, n), v in seen.items() if n == 2}
     ident = {name: v[1] for (name, n), v in seen.items() if n == 2}
     assert max(val[n] for n in went_on) < min(val[n] for n in left)
@@ -156,3 +156,10 @@ def test_two_runs_merge_into_one(case):
     lm = [r["seconds"] for r in m.history]
     assert m.timings["lm_iter_s"] == pytest.approx(np.mean(lm), rel=1e-12)
     assert np.isnan(m.timings["socp_iter_s"])
+
+
+def test_a_race_whose_runners_all_converge_in_a_round_drops_none(case):
+    data, validation, runners = case
+    fresh = [Runner(r.name, r.model, r.stages) for r in runners]
+    assert race(fresh, data, validation, rounds=(100, 100)) == fresh
+    assert all(r.done and r.dropped is None for r in fresh)
