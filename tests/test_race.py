@@ -46,11 +46,13 @@ def case():
         "truth": truth,
         "simple": first_order(lambda p: 0.5 + 0 * p),
     }
-    runners = [
-        Runner(name, m, [Stage("all groups", np.zeros(m.theta.size, bool))])
-        for name, m in models.items()
-    ]
+    runners = [_runner(name, m) for name, m in models.items()]
     return data, validation, runners
+
+
+def _runner(name, model, **options) -> Runner:
+    """A runner of one stage, every parameter free."""
+    return Runner(name, model, [Stage("all groups", np.zeros(model.theta.size, bool))], **options)
 
 
 def _order(runners, keys):
@@ -110,10 +112,7 @@ def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
         first_order(lambda p, k=k: 0.502 + (0.4 - 0.07 * k) * p * (1 - p) + 0.02 * k)
         for k in range(6)
     ]
-    runners = [
-        Runner(f"s{k}", m, [Stage("all groups", np.zeros(m.theta.size, bool))], ftol=0.0)
-        for k, m in enumerate(starts)
-    ]
+    runners = [_runner(f"s{k}", m, ftol=0.0) for k, m in enumerate(starts)]
     seen = {}  # (name, steps) -> (validation, identification V_NLS) after each round
 
     def step(r):
@@ -160,6 +159,6 @@ def test_two_runs_merge_into_one(case):
 
 def test_a_race_whose_runners_all_converge_in_a_round_drops_none(case):
     data, validation, runners = case
-    fresh = [Runner(r.name, r.model, r.stages) for r in runners]
+    fresh = [_runner(r.name, r.model) for r in runners]
     assert race(fresh, data, validation, rounds=(100, 100)) == fresh
     assert all(r.done and r.dropped is None for r in fresh)
