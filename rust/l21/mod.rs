@@ -175,14 +175,17 @@ pub fn fit_l21(
     let mut prev_phi: Option<Vec<f64>> = None;
     let mut prev_state: Option<(Vec<f64>, f64, Vec<f64>)> = None;
     let mut stop = Stop::MaxIterations;
-    let mut groups = weigh(&specs, &theta, settings);
+    let mut groups;
     let mut outer = 0;
     let mut solver = Lookahead::new(settings.cone_tol);
     // The kept-off directions, made orthonormal once in the metric of the
     // first step.
     let mu0 = Damping::new(settings.lambda0).mu;
     let pinned = pinned.and_then(|p| p.basis(&jacobi_scale(&gn, &diag, mu0, m_res)));
-    'outer: while outer < settings.max_outer {
+    // The stopping tests run at the top of every reweighting and once more
+    // after the last one the limit allows: a fit whose last reweighting
+    // settled it has converged, not run out of iterations.
+    'outer: loop {
         groups = weigh(&specs, &theta, settings);
         solver.forget();
         let phi: Vec<f64> = groups.iter().map(|g| g.phi).collect();
@@ -214,6 +217,9 @@ pub fn fit_l21(
                 stop = Stop::Settled;
                 break;
             }
+        }
+        if outer == settings.max_outer {
+            break;
         }
         prev_state = Some((magnitudes, gn.vnls, response));
         outer += 1;

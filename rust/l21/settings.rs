@@ -46,7 +46,8 @@ pub struct L21Settings {
     /// less than `ftol` times its value (about `V_NLS / M`: the default
     /// 1e-4 is far below the noise in `V_NLS / M`, `1 / sqrt(M)`).
     pub ftol: f64,
-    /// Most outer (reweighting) iterations.
+    /// Most outer (reweighting) iterations (the stopping tests are made
+    /// once more after the last).
     pub max_outer: usize,
     /// Most cone steps per outer iteration. Few steps per reweighting work
     /// best: long inner loops mostly slide along similarity transforms.

@@ -75,20 +75,72 @@ fn on_a_linear_problem_every_step_gains_what_it_predicted() {
 
 #[test]
 fn max_outer_counts_the_reweightings() {
-    let (p, truth) = Linear::new(0.05);
+    let (p, truth) = Linear::new(0.2);
     let start = perturbed(&truth, 0.5, 1);
-    for max_outer in [1, 2] {
-        let s = L21Settings {
-            gamma: 0.05,
-            dphi_min: 0.0,
-            dvnls_min: 0.0,
-            max_outer,
-            ..L21Settings::default()
-        };
-        let f = fit(&p, &start, &SUP, &s);
+    let s = L21Settings {
+        gamma: 0.2,
+        dphi_min: 0.0,
+        dvnls_min: 0.0,
+        ..L21Settings::default()
+    };
+    let needed = fit(&p, &start, &SUP, &s).outer_iterations;
+    assert!(needed >= 3, "{needed}");
+    for max_outer in 1..needed {
+        let f = fit(&p, &start, &SUP, &L21Settings { max_outer, ..s });
         assert_eq!(f.stop, Stop::MaxIterations);
         assert_eq!(f.outer_iterations, max_outer);
         assert_eq!(f.history.last().unwrap().outer, max_outer);
+    }
+}
+
+#[test]
+fn a_fit_that_settles_in_its_last_allowed_reweighting_has_converged() {
+    // The stopping tests run once more after the last reweighting the limit
+    // allows: a limit of exactly the reweightings a fit needs gives that
+    // fit (the same steps, theta, weights and objective) and its stop, not
+    // the iteration limit; one reweighting fewer stops at the limit, with
+    // the weights at the theta it returns.
+    let (sp, sstart, ss) = sparse_start(0.01, 0.01, 0.01);
+    let ss = L21Settings {
+        dphi_min: 0.0,
+        dvnls_min: 0.0,
+        ..ss
+    };
+    let (lp, truth) = Linear::new(0.05);
+    let lstart = perturbed(&truth, 0.5, 1);
+    let ls = L21Settings {
+        gamma: 0.05,
+        dvnls_min: 0.0,
+        ..L21Settings::default()
+    };
+    let cases: [(&dyn Objective, &[f64], L21Settings, usize); 2] =
+        [(&sp, &sstart, ss, 1), (&lp, &lstart, ls, 2)];
+    for (p, start, s, least) in cases {
+        let want = fit(p, start, &SUP, &s);
+        assert_ne!(want.stop, Stop::MaxIterations);
+        let k = want.outer_iterations;
+        assert!(k >= least, "{k}");
+        let limited = fit(p, start, &SUP, &L21Settings { max_outer: k, ..s });
+        assert_eq!(limited.stop, want.stop);
+        assert_eq!(limited.outer_iterations, k);
+        assert_eq!(limited.theta, want.theta);
+        assert_eq!(limited.history.len(), want.history.len());
+        assert_eq!(limited.weights, want.weights);
+        assert_eq!(limited.objective, want.objective);
+        if k > 1 {
+            let short = fit(
+                p,
+                start,
+                &SUP,
+                &L21Settings {
+                    max_outer: k - 1,
+                    ..s
+                },
+            );
+            assert_eq!(short.stop, Stop::MaxIterations);
+            assert_eq!(short.outer_iterations, k - 1);
+            assert_eq!(short.weights, phis(p, &short.theta, &SUP, &s));
+        }
     }
 }
 

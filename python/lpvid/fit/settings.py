@@ -97,7 +97,8 @@ class L21Settings:
         ones) with 25-50 % fewer cone steps.
     max_outer, max_inner : int
         Iteration limits of the outer (reweighting) and inner (cone step)
-        loops, >= 1.
+        loops, >= 1. The outer loop's stopping tests are made once more
+        after its last reweighting: a fit that settled there has converged.
     lambda0 : float
         Initial damping, > 0 (reset at every reweighting).
 
