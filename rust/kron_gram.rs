@@ -25,12 +25,12 @@
 //! flops: 4x on a 2x2 system, 6x on a 3x3.
 
 use crate::error::Result;
+use crate::gram_product::{gram_product, scratch_len};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{Matrix, Shape};
 use crate::lti::Resolvent;
 use crate::memory::{try_vec, try_zeros};
-use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::Mat;
 
 /// Samples (line and group index) per matrix product: large enough for an
 /// efficient product, small enough to stay in cache.
@@ -74,6 +74,8 @@ pub struct KronGram {
     /// weighted side, and `sum_c conj(v_c) w_jc err_jc` of one output.
     squares: Vec<[f64; LANES]>,
     t: Vec<Cx>,
+    /// Scratch of the products in [`KronGram::flush`].
+    panels: Vec<f64>,
 }
 
 /// What one point's lines add up to: `S1`, `S2` and `J^T r` in LTI order.
@@ -112,6 +114,7 @@ impl KronGram {
             jtr: vec![[0.0; LANES]; da * db],
             squares: vec![[0.0; LANES]; l.max(r)],
             t: vec![Cx::default(); db],
+            panels: try_vec(scratch_len(packed(da), cols), 0.0, samples)?,
         })
     }
 
@@ -135,9 +138,9 @@ impl KronGram {
     /// given shape.
     pub fn bytes(shape: &Shape) -> usize {
         let (da, db) = (shape.n + shape.l, shape.n + shape.r);
-        let buffers =
-            (packed(da) + strict(da) + packed(db) + strict(db)) * Self::block_columns(shape);
-        8 * buffers + GramParts::bytes(shape)
+        let cols = Self::block_columns(shape);
+        let buffers = (packed(da) + strict(da) + packed(db) + strict(db)) * cols;
+        8 * (buffers + scratch_len(packed(da), cols)) + GramParts::bytes(shape)
     }
 
     /// Columns of the sample buffers.
@@ -233,14 +236,11 @@ impl KronGram {
                 row[self.filled..].iter_mut().for_each(|x| *x = 0.0);
             }
         }
-        let (da, db) = (self.n + self.l, self.n + self.r);
-        for (out, vs, us, rows_v, rows_u) in [
-            (&mut self.s1, &self.v_re, &self.u_re, packed(db), packed(da)),
-            (&mut self.s2, &self.v_im, &self.u_im, strict(db), strict(da)),
+        for (out, vs, us) in [
+            (&mut self.s1, &self.v_re, &self.u_re),
+            (&mut self.s2, &self.v_im, &self.u_im),
         ] {
-            let vm = MatRef::from_row_major_slice(vs, rows_v, cols);
-            let um = MatRef::from_row_major_slice(us, rows_u, cols);
-            matmul(out.as_mut(), Accum::Add, vm, um.transpose(), 1.0, Par::Seq);
+            gram_product(out.as_mut(), vs, us, cols, cols, &mut self.panels);
         }
         self.filled = 0;
     }

@@ -11,6 +11,7 @@ pub mod data;
 pub mod dense;
 pub mod error;
 pub mod fit;
+pub mod gram_product;
 pub mod kron_gram;
 pub mod l21;
 pub mod lanes;

@@ -47,7 +47,7 @@ fn small_blocks_go_to_the_system_allocator_and_are_not_kept() {
     // Over-aligned large blocks too.
     let over = Layout::from_size_align(BIG, 2 * PAGE).expect("a valid layout");
     let q = unsafe { a.alloc(over) };
-    assert!(!q.is_null() && q as usize % (2 * PAGE) == 0);
+    assert!(!q.is_null() && (q as usize).is_multiple_of(2 * PAGE));
     unsafe { a.dealloc(q, over) };
     assert_eq!(a.kept_bytes(), 0);
 }
@@ -57,7 +57,7 @@ fn a_freed_block_is_kept_and_handed_to_the_next_request_of_its_class() {
     let a = Blocks::new();
     let first = big(BIG + 1);
     let p = unsafe { a.alloc(first) };
-    assert!(!p.is_null() && p as usize % PAGE == 0);
+    assert!(!p.is_null() && (p as usize).is_multiple_of(PAGE));
     fill(p, first.size(), 1);
     unsafe { a.dealloc(p, first) };
     let len = class(first.size()).expect("no overflow");

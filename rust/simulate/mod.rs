@@ -112,7 +112,7 @@ fn check_sizes(
 ) -> Result<usize> {
     shape.check_theta(theta)?;
     let (n, r, nb) = (shape.n, shape.r, shape.nb);
-    if u.len() % r != 0 {
+    if !u.len().is_multiple_of(r) {
         return Err(invalid(
             "u",
             format!("expected T x {r} input values, got {}", u.len()),

@@ -30,7 +30,7 @@ impl Record {
         sigma: &[f64],
     ) -> Result<Record> {
         let (r, l, nb) = (shape.r, shape.l, shape.nb);
-        if u.is_empty() || u.len() % r != 0 {
+        if u.is_empty() || !u.len().is_multiple_of(r) {
             return Err(invalid(
                 "u",
                 format!("expected T x {r} input values with T >= 1, got {}", u.len()),

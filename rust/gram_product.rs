@@ -1,0 +1,438 @@
+//! The Gram products of [`crate::kron_gram`]: `C += V U^T` for row-major
+//! `V` (`m x k`) and `U` (`p x k`) into a column-major `C`.
+//!
+//! Products of more than [`FAER_ENTRIES`] entries run on the core's own
+//! kernels, with every entry summed in one order on every processor: entry
+//! `(i, j)` is `C_ij + (((0 + v_i0 u_j0) + v_i1 u_j1) + ...)`, each step one
+//! fused multiply-add, its samples in their order. The kernels vectorise
+//! across entries (rows of `C`), never across the samples of one entry, so
+//! the AVX-512 kernel (8 rows a register), the AVX2 kernel (4) and the
+//! plain loop give the same bits: a result does not depend on the
+//! processor's vector width. That is the order `gemm` (under faer) sums
+//! these products in on an AVX2 processor, so the models are the ones
+//! faer's products gave; on AVX-512 processors the kernels are about twice
+//! the speed of `gemm`'s AVX2 kernels (its AVX-512 kernels need a nightly
+//! compiler).
+//!
+//! Smaller products stay on faer: `gemm` computes them with dot-product
+//! kernels that sum each entry's samples in another order, and the small
+//! models (SISO, n <= 4) keep the bits they have always had.
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+
+/// Rows of `C` and columns per register block of each kernel.
+const MR_512: usize = 16;
+const NR_512: usize = 12;
+const MR_256: usize = 8;
+const NR_256: usize = 6;
+
+/// Which kernel a product runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    /// The plain loop (`f64::mul_add`).
+    Plain,
+    /// AVX2 and FMA, 8 x 6 blocks.
+    Avx2,
+    /// AVX-512F, 16 x 12 blocks.
+    Avx512,
+}
+
+impl Kernel {
+    /// The widest kernel this processor runs.
+    pub fn best() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Kernel::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                return Kernel::Avx2;
+            }
+        }
+        Kernel::Plain
+    }
+
+    /// Whether this processor runs the kernel.
+    pub fn available(self) -> bool {
+        match self {
+            Kernel::Plain => true,
+            Kernel::Avx2 => matches!(Kernel::best(), Kernel::Avx2 | Kernel::Avx512),
+            Kernel::Avx512 => Kernel::best() == Kernel::Avx512,
+        }
+    }
+}
+
+/// Length of the scratch [`gram_product`] needs for `p` columns of `C` and
+/// `k` samples, on any kernel.
+pub fn scratch_len(p: usize, k: usize) -> usize {
+    MR_512 * k + p.div_ceil(NR_256) * NR_256 * k + NR_512 * k + MR_512 * NR_512
+}
+
+/// Products of at most this many entries (`m p`) run on faer: `gemm`'s
+/// dot-product kernels take them (`m n <= 16 * 16` in `gemm-common`), in
+/// another order of the samples than the core's kernels.
+pub const FAER_ENTRIES: usize = 256;
+
+/// `C += V U^T` over the first `k` samples: `V` is `m x stride` row-major
+/// (`v[i * stride + s]`), `U` `p x stride`, `C` `m x p`; on faer when `C`
+/// has at most [`FAER_ENTRIES`] entries, else on the widest kernel the
+/// processor runs. `scratch` holds at least [`scratch_len`]`(p, k)` values
+/// (its contents are overwritten).
+pub fn gram_product(
+    c: MatMut<'_, f64>,
+    v: &[f64],
+    u: &[f64],
+    stride: usize,
+    k: usize,
+    scratch: &mut [f64],
+) {
+    let (m, p) = (c.nrows(), c.ncols());
+    if m * p <= FAER_ENTRIES {
+        let vm = MatRef::from_row_major_slice(&v[..m * stride], m, stride).get(.., ..k);
+        let um = MatRef::from_row_major_slice(&u[..p * stride], p, stride).get(.., ..k);
+        matmul(c, Accum::Add, vm, um.transpose(), 1.0, Par::Seq);
+        return;
+    }
+    gram_product_with(Kernel::best(), c, v, u, stride, k, scratch);
+}
+
+/// [`gram_product`] on a given kernel (the plain loop when the processor
+/// does not run it).
+pub fn gram_product_with(
+    kernel: Kernel,
+    mut c: MatMut<'_, f64>,
+    v: &[f64],
+    u: &[f64],
+    stride: usize,
+    k: usize,
+    scratch: &mut [f64],
+) {
+    let (m, p) = (c.nrows(), c.ncols());
+    assert!(k <= stride, "k {k} past the stride {stride}");
+    assert!(v.len() >= m * stride && u.len() >= p * stride);
+    assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
+    if m == 0 || p == 0 || k == 0 {
+        return;
+    }
+    let kernel = if kernel.available() {
+        kernel
+    } else {
+        Kernel::Plain
+    };
+    let (mr, nr) = match kernel {
+        Kernel::Plain => return plain(c, v, u, stride, k),
+        Kernel::Avx2 => (MR_256, NR_256),
+        Kernel::Avx512 => (MR_512, NR_512),
+    };
+    // Panels: `mr` rows of V (and `nr` of U) side by side per sample, rows
+    // past the end zero (their entries are computed and dropped).
+    let (vp, rest) = scratch.split_at_mut(mr * k);
+    let (up, rest) = rest.split_at_mut(p.div_ceil(nr) * nr * k);
+    let block = &mut rest[..mr * nr];
+    for (jp, panel) in up.chunks_mut(nr * k).enumerate() {
+        pack(panel, u, stride, k, jp * nr, nr, p);
+    }
+    // Whole blocks of a C with contiguous columns are added to in place.
+    let ldc = usize::try_from(c.col_stride())
+        .ok()
+        .filter(|_| c.row_stride() == 1);
+    for i0 in (0..m).step_by(mr) {
+        pack(vp, v, stride, k, i0, mr, m);
+        for (jp, panel) in up.chunks(nr * k).enumerate() {
+            let j0 = jp * nr;
+            let whole = i0 + mr <= m && j0 + nr <= p;
+            let (out, ld) = match ldc {
+                Some(ld) if whole => (c.as_mut().get_mut(i0.., j0..).as_ptr_mut(), ld),
+                _ => {
+                    block.iter_mut().for_each(|x| *x = 0.0);
+                    (block.as_mut_ptr(), mr)
+                }
+            };
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: the kernel is available (checked above); the panels
+            // hold `k` samples of `mr` (`nr`) values, and `out` is an
+            // `mr x nr` block with columns `ld` apart: in `C` (a whole
+            // block of it, its columns contiguous) or in `block`.
+            unsafe {
+                match kernel {
+                    Kernel::Avx512 => x86::block_512(vp, panel, k, out, ld),
+                    _ => x86::block_256(vp, panel, k, out, ld),
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            // SAFETY: as above.
+            unsafe {
+                block_plain(vp, panel, k, mr, nr, out, ld)
+            };
+            if out == block.as_mut_ptr() {
+                for jj in 0..nr.min(p - j0) {
+                    let mut col = c.as_mut().col_mut(j0 + jj);
+                    for ii in 0..mr.min(m - i0) {
+                        col[i0 + ii] += block[jj * mr + ii];
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Rows `r0..r0 + width` of a row-major `rows x stride` matrix, sample by
+/// sample: `panel[s * width + q] = x[(r0 + q) * stride + s]`, zero past `rows`.
+fn pack(
+    panel: &mut [f64],
+    x: &[f64],
+    stride: usize,
+    k: usize,
+    r0: usize,
+    width: usize,
+    rows: usize,
+) {
+    for q in 0..width {
+        let r = r0 + q;
+        if r < rows {
+            let row = &x[r * stride..r * stride + k];
+            for (s, &value) in row.iter().enumerate() {
+                panel[s * width + q] = value;
+            }
+        } else {
+            for s in 0..k {
+                panel[s * width + q] = 0.0;
+            }
+        }
+    }
+}
+
+/// The plain loop, entry by entry.
+fn plain(mut c: MatMut<'_, f64>, v: &[f64], u: &[f64], stride: usize, k: usize) {
+    let (m, p) = (c.nrows(), c.ncols());
+    for j in 0..p {
+        let uj = &u[j * stride..j * stride + k];
+        for i in 0..m {
+            let vi = &v[i * stride..i * stride + k];
+            let mut acc = 0.0f64;
+            for (a, b) in vi.iter().zip(uj) {
+                acc = a.mul_add(*b, acc);
+            }
+            c[(i, j)] += acc;
+        }
+    }
+}
+
+/// Adds a block of `mr x nr` sums from the panels to `out` (columns `ld`
+/// apart), plainly (other architectures).
+///
+/// # Safety
+/// `out` is an `mr x nr` block with columns `ld` apart.
+#[cfg(not(target_arch = "x86_64"))]
+unsafe fn block_plain(
+    vp: &[f64],
+    up: &[f64],
+    k: usize,
+    mr: usize,
+    nr: usize,
+    out: *mut f64,
+    ld: usize,
+) {
+    for jj in 0..nr {
+        for ii in 0..mr {
+            let mut acc = 0.0f64;
+            for s in 0..k {
+                acc = vp[s * mr + ii].mul_add(up[s * nr + jj], acc);
+            }
+            *out.add(jj * ld + ii) += acc;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use super::{MR_256, MR_512, NR_256, NR_512};
+    use std::arch::x86_64::*;
+
+    /// `out[jj * ld + ii] += sum_s vp[s * 16 + ii] up[s * 12 + jj]`, the
+    /// sum from zero with one fused multiply-add per sample in order.
+    ///
+    /// # Safety
+    /// The processor must run AVX-512F; `vp` holds `16 k` and `up` `12 k`
+    /// values, and `out` is a `16 x 12` block with columns `ld` apart.
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn block_512(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
+        debug_assert!(vp.len() >= MR_512 * k && up.len() >= NR_512 * k);
+        let mut acc = [[_mm512_setzero_pd(); 2]; NR_512];
+        let (a, b) = (vp.as_ptr(), up.as_ptr());
+        for s in 0..k {
+            let a0 = _mm512_loadu_pd(a.add(s * MR_512));
+            let a1 = _mm512_loadu_pd(a.add(s * MR_512 + 8));
+            for (jj, pair) in acc.iter_mut().enumerate() {
+                let bj = _mm512_set1_pd(*b.add(s * NR_512 + jj));
+                pair[0] = _mm512_fmadd_pd(a0, bj, pair[0]);
+                pair[1] = _mm512_fmadd_pd(a1, bj, pair[1]);
+            }
+        }
+        for (jj, pair) in acc.iter().enumerate() {
+            let col = out.add(jj * ld);
+            _mm512_storeu_pd(col, _mm512_add_pd(_mm512_loadu_pd(col), pair[0]));
+            let col = col.add(8);
+            _mm512_storeu_pd(col, _mm512_add_pd(_mm512_loadu_pd(col), pair[1]));
+        }
+    }
+
+    /// As [`block_512`] in 8 x 6 blocks.
+    ///
+    /// # Safety
+    /// The processor must run AVX2 and FMA; `vp` holds `8 k` and `up` `6 k`
+    /// values, and `out` is an `8 x 6` block with columns `ld` apart.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn block_256(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
+        debug_assert!(vp.len() >= MR_256 * k && up.len() >= NR_256 * k);
+        let mut acc = [[_mm256_setzero_pd(); 2]; NR_256];
+        let (a, b) = (vp.as_ptr(), up.as_ptr());
+        for s in 0..k {
+            let a0 = _mm256_loadu_pd(a.add(s * MR_256));
+            let a1 = _mm256_loadu_pd(a.add(s * MR_256 + 4));
+            for (jj, pair) in acc.iter_mut().enumerate() {
+                let bj = _mm256_set1_pd(*b.add(s * NR_256 + jj));
+                pair[0] = _mm256_fmadd_pd(a0, bj, pair[0]);
+                pair[1] = _mm256_fmadd_pd(a1, bj, pair[1]);
+            }
+        }
+        for (jj, pair) in acc.iter().enumerate() {
+            let col = out.add(jj * ld);
+            _mm256_storeu_pd(col, _mm256_add_pd(_mm256_loadu_pd(col), pair[0]));
+            let col = col.add(4);
+            _mm256_storeu_pd(col, _mm256_add_pd(_mm256_loadu_pd(col), pair[1]));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::Mat;
+
+    /// A deterministic, irregular row-major `rows x stride` matrix.
+    fn filled(rows: usize, stride: usize, seed: f64) -> Vec<f64> {
+        (0..rows * stride)
+            .map(|i| ((i * i % 97) as f64 * 0.731 + seed).sin() * (1.0 + (i % 7) as f64))
+            .collect()
+    }
+
+    fn start(m: usize, p: usize) -> Mat<f64> {
+        Mat::from_fn(m, p, |i, j| ((i * 3 + j * 5) as f64 * 0.17).cos())
+    }
+
+    #[test]
+    fn every_kernel_gives_the_plain_loops_bits() {
+        // Sizes off every block size, the samples fewer than the stride.
+        for (m, p, stride, k) in [(1, 1, 1, 1), (17, 13, 40, 37), (35, 26, 9, 9), (8, 6, 5, 0)] {
+            let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
+            let mut want = start(m, p);
+            plain(want.as_mut(), &v, &u, stride, k);
+            for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
+                let mut got = start(m, p);
+                let mut scratch = vec![f64::NAN; scratch_len(p, k)];
+                gram_product_with(kernel, got.as_mut(), &v, &u, stride, k, &mut scratch);
+                for j in 0..p {
+                    for i in 0..m {
+                        assert_eq!(
+                            got[(i, j)].to_bits(),
+                            want[(i, j)].to_bits(),
+                            "{kernel:?} ({i}, {j}) of {m} x {p}, k {k}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_plain_loop_is_the_product_and_fuses_each_step() {
+        // Against faer's product to rounding, on sizes off the blocks.
+        let (m, p, stride, k) = (23, 19, 50, 47);
+        let (v, u) = (filled(m, stride, 0.7), filled(p, stride, 2.3));
+        let mut got = start(m, p);
+        gram_product(
+            got.as_mut(),
+            &v,
+            &u,
+            stride,
+            k,
+            &mut vec![0.0; scratch_len(p, k)],
+        );
+        let vm = Mat::from_fn(m, k, |i, s| v[i * stride + s]);
+        let um = Mat::from_fn(p, k, |j, s| u[j * stride + s]);
+        let want = start(m, p) + &vm * um.transpose();
+        for j in 0..p {
+            for i in 0..m {
+                let scale: f64 = (0..k).map(|s| (vm[(i, s)] * um[(j, s)]).abs()).sum();
+                assert!((got[(i, j)] - want[(i, j)]).abs() <= 1e-14 * (scale + 1.0));
+            }
+        }
+        // One entry whose products cancel: -y + x x with y the rounded
+        // square, fused, is the rounding error of x x (0 unfused).
+        let x = 0.1f64;
+        let (v1, u1) = (vec![-1.0, x], vec![x * x, x]);
+        let mut c = Mat::<f64>::zeros(1, 1);
+        gram_product_with(
+            Kernel::best(),
+            c.as_mut(),
+            &v1,
+            &u1,
+            2,
+            2,
+            &mut vec![0.0; scratch_len(1, 2)],
+        );
+        assert_eq!(c[(0, 0)], x.mul_add(x, -(x * x)));
+        assert_ne!(c[(0, 0)], 0.0);
+    }
+
+    #[test]
+    fn small_products_run_on_faer_and_larger_ones_on_the_kernels() {
+        // At most FAER_ENTRIES entries: faer's bits (its dot-product
+        // kernels sum in another order than the plain loop, so each side
+        // of the line tells which ran); one more row or column: the loop's.
+        let (stride, k) = (260, 256);
+        for (m, p) in [(16, 16), (4, 64), (3, 85), (16, 17), (5, 52), (2, 129)] {
+            let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
+            let mut got = start(m, p);
+            let mut scratch = vec![f64::NAN; scratch_len(p, k)];
+            gram_product(got.as_mut(), &v, &u, stride, k, &mut scratch);
+            let mut loop_bits = start(m, p);
+            plain(loop_bits.as_mut(), &v, &u, stride, k);
+            let mut faer_bits = start(m, p);
+            let vm = MatRef::from_row_major_slice(&v, m, stride).get(.., ..k);
+            let um = MatRef::from_row_major_slice(&u, p, stride).get(.., ..k);
+            matmul(
+                faer_bits.as_mut(),
+                Accum::Add,
+                vm,
+                um.transpose(),
+                1.0,
+                Par::Seq,
+            );
+            let bits = |x: &Mat<f64>| -> Vec<u64> {
+                (0..p)
+                    .flat_map(|j| (0..m).map(move |i| (i, j)))
+                    .map(|(i, j)| x[(i, j)].to_bits())
+                    .collect()
+            };
+            let want = if m * p <= FAER_ENTRIES {
+                &faer_bits
+            } else {
+                &loop_bits
+            };
+            let other = if m * p <= FAER_ENTRIES {
+                &loop_bits
+            } else {
+                &faer_bits
+            };
+            assert_eq!(bits(&got), bits(want), "{m} x {p}");
+            if m * p <= FAER_ENTRIES {
+                assert_ne!(bits(&got), bits(other), "{m} x {p}: the orders agree here");
+            }
+        }
+    }
+}
