@@ -364,15 +364,28 @@ def test_judged_refit_keeps_the_refit_only_when_it_validates_better(peaked):
     assert not better.kept and better.model is model and better.fit is not None
     dropped = lpvid.fixed_mask(model, FIXED) | dropped_mask(model, 1e-3)
     np.testing.assert_array_equal(better.held, dropped)
-    # A refit stopped at its step limit is judged the same way, and its note says so.
-    stopped = judged_refit(model, peaked, val, FIXED, max_iter=1, ftol=0.0, xtol=0.0)
+    # A refit stopped at its step limit is not kept, even where it validates
+    # better (told it validated ten times worse before), and its note says so.
+    stopped = judged_refit(
+        model,
+        peaked,
+        val,
+        FIXED,
+        validation_vnls=10 * before,
+        threshold=1e-3,
+        max_iter=1,
+        ftol=0.0,
+        xtol=0.0,
+    )
     assert not stopped.fit.converged and stopped.fit.n_iter == 1
     after1 = lpvid.vnls(stopped.fit.model, val)
-    assert stopped.kept is bool(after1 < (1 - REFIT_MARGIN) * before)
-    change = f"validation V_NLS {before:.6g} -> {after1:.6g}"
-    assert stopped.note.endswith(
-        f"({change}; it stopped at its step limit (1 steps), not converged)"
-        + ("" if stopped.kept else "; not kept")
+    assert after1 < (1 - REFIT_MARGIN) * 10 * before
+    assert not stopped.kept and stopped.model is model
+    np.testing.assert_array_equal(stopped.held, dropped)
+    change = f"validation V_NLS {10 * before:.6g} -> {after1:.6g}"
+    assert stopped.note == (
+        "the refit on the support stopped at its step limit (1 steps), not converged "
+        f"({change}): where it stopped follows the last bits; not kept"
     )
 
 
