@@ -252,60 +252,59 @@ mod x86 {
     use super::{MR_256, MR_512, NR_256, NR_512};
     use std::arch::x86_64::*;
 
-    /// `out[jj * ld + ii] += sum_s vp[s * 16 + ii] up[s * 12 + jj]`, the
-    /// sum from zero with one fused multiply-add per sample in order.
-    ///
-    /// # Safety
-    /// The processor must run AVX-512F; `vp` holds `16 k` and `up` `12 k`
-    /// values, and `out` is a `16 x 12` block with columns `ld` apart.
-    #[target_feature(enable = "avx512f")]
-    pub unsafe fn block_512(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
-        debug_assert!(vp.len() >= MR_512 * k && up.len() >= NR_512 * k);
-        let mut acc = [[_mm512_setzero_pd(); 2]; NR_512];
-        let (a, b) = (vp.as_ptr(), up.as_ptr());
-        for s in 0..k {
-            let a0 = _mm512_loadu_pd(a.add(s * MR_512));
-            let a1 = _mm512_loadu_pd(a.add(s * MR_512 + 8));
-            for (jj, pair) in acc.iter_mut().enumerate() {
-                let bj = _mm512_set1_pd(*b.add(s * NR_512 + jj));
-                pair[0] = _mm512_fmadd_pd(a0, bj, pair[0]);
-                pair[1] = _mm512_fmadd_pd(a1, bj, pair[1]);
+    /// A kernel on one register width: `out[jj * ld + ii] += sum_s
+    /// vp[s * mr + ii] up[s * nr + jj]`, each sum from zero with one fused
+    /// multiply-add per sample in order, `mr` rows as two registers of
+    /// `half` doubles.
+    macro_rules! block_kernel {
+        ($(#[$doc:meta])* $name:ident, $feature:literal, $mr:ident, $nr:ident, $half:literal,
+         $zero:ident, $load:ident, $store:ident, $splat:ident, $fma:ident, $add:ident) => {
+            $(#[$doc])*
+            #[target_feature(enable = $feature)]
+            pub unsafe fn $name(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
+                debug_assert!(vp.len() >= $mr * k && up.len() >= $nr * k);
+                let mut acc = [[$zero(); 2]; $nr];
+                let (a, b) = (vp.as_ptr(), up.as_ptr());
+                for s in 0..k {
+                    let a0 = $load(a.add(s * $mr));
+                    let a1 = $load(a.add(s * $mr + $half));
+                    for (jj, pair) in acc.iter_mut().enumerate() {
+                        let bj = $splat(*b.add(s * $nr + jj));
+                        pair[0] = $fma(a0, bj, pair[0]);
+                        pair[1] = $fma(a1, bj, pair[1]);
+                    }
+                }
+                for (jj, pair) in acc.iter().enumerate() {
+                    let col = out.add(jj * ld);
+                    $store(col, $add($load(col), pair[0]));
+                    let col = col.add($half);
+                    $store(col, $add($load(col), pair[1]));
+                }
             }
-        }
-        for (jj, pair) in acc.iter().enumerate() {
-            let col = out.add(jj * ld);
-            _mm512_storeu_pd(col, _mm512_add_pd(_mm512_loadu_pd(col), pair[0]));
-            let col = col.add(8);
-            _mm512_storeu_pd(col, _mm512_add_pd(_mm512_loadu_pd(col), pair[1]));
-        }
+        };
     }
 
-    /// As [`block_512`] in 8 x 6 blocks.
-    ///
-    /// # Safety
-    /// The processor must run AVX2 and FMA; `vp` holds `8 k` and `up` `6 k`
-    /// values, and `out` is an `8 x 6` block with columns `ld` apart.
-    #[target_feature(enable = "avx2,fma")]
-    pub unsafe fn block_256(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
-        debug_assert!(vp.len() >= MR_256 * k && up.len() >= NR_256 * k);
-        let mut acc = [[_mm256_setzero_pd(); 2]; NR_256];
-        let (a, b) = (vp.as_ptr(), up.as_ptr());
-        for s in 0..k {
-            let a0 = _mm256_loadu_pd(a.add(s * MR_256));
-            let a1 = _mm256_loadu_pd(a.add(s * MR_256 + 4));
-            for (jj, pair) in acc.iter_mut().enumerate() {
-                let bj = _mm256_set1_pd(*b.add(s * NR_256 + jj));
-                pair[0] = _mm256_fmadd_pd(a0, bj, pair[0]);
-                pair[1] = _mm256_fmadd_pd(a1, bj, pair[1]);
-            }
-        }
-        for (jj, pair) in acc.iter().enumerate() {
-            let col = out.add(jj * ld);
-            _mm256_storeu_pd(col, _mm256_add_pd(_mm256_loadu_pd(col), pair[0]));
-            let col = col.add(4);
-            _mm256_storeu_pd(col, _mm256_add_pd(_mm256_loadu_pd(col), pair[1]));
-        }
-    }
+    block_kernel!(
+        /// The kernel in 16 x 12 blocks.
+        ///
+        /// # Safety
+        /// The processor must run AVX-512F; `vp` holds `16 k` and `up` `12 k`
+        /// values, and `out` is a `16 x 12` block with columns `ld` apart.
+        block_512, "avx512f", MR_512, NR_512, 8,
+        _mm512_setzero_pd, _mm512_loadu_pd, _mm512_storeu_pd, _mm512_set1_pd, _mm512_fmadd_pd,
+        _mm512_add_pd
+    );
+
+    block_kernel!(
+        /// The kernel in 8 x 6 blocks.
+        ///
+        /// # Safety
+        /// The processor must run AVX2 and FMA; `vp` holds `8 k` and `up` `6 k`
+        /// values, and `out` is an `8 x 6` block with columns `ld` apart.
+        block_256, "avx2,fma", MR_256, NR_256, 4,
+        _mm256_setzero_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_set1_pd, _mm256_fmadd_pd,
+        _mm256_add_pd
+    );
 }
 
 #[cfg(test)]
