@@ -124,8 +124,9 @@ impl KronGram {
         BLOCK_SAMPLES.div_ceil(groups * LANES) * groups * LANES
     }
 
-    /// Zero `S1` and `S2` for a model of the given shape.
-    fn sums(shape: &Shape) -> Result<(Mat<f64>, Mat<f64>)> {
+    /// Zero `S1` and `S2` for a model of the given shape, or
+    /// [`crate::Error::OutOfMemory`].
+    pub fn sums(shape: &Shape) -> Result<(Mat<f64>, Mat<f64>)> {
         let (da, db) = (shape.n + shape.l, shape.n + shape.r);
         let what = "the Gram pieces S1, S2 of a block of lines";
         Ok((
@@ -254,17 +255,10 @@ impl KronGram {
     }
 
     /// Everything added since the last call, which leaves the accumulator
-    /// empty for the next lines (its sample buffers are kept: every column
-    /// is written before it is read); [`crate::Error::OutOfMemory`] when
-    /// the next lines' sums cannot be had (the accumulator is then empty).
-    pub fn finish(&mut self, shape: &Shape) -> Result<GramParts> {
-        let (s1, s2) = match Self::sums(shape) {
-            Ok(fresh) => fresh,
-            Err(e) => {
-                self.clear();
-                return Err(e);
-            }
-        };
+    /// empty for the next lines, on `next`: zeroed `S1` and `S2` of the
+    /// shape's sizes ([`KronGram::sums`]; its sample buffers are kept:
+    /// every column is written before it is read).
+    pub fn finish(&mut self, shape: &Shape, next: (Mat<f64>, Mat<f64>)) -> GramParts {
         self.flush();
         let da = self.n + self.l;
         let mut jtr = vec![0.0; shape.lti_len()];
@@ -272,9 +266,9 @@ impl KronGram {
             jtr[lti_index(shape, ab % da, ab / da)] = g.iter().sum();
             *g = [0.0; LANES];
         }
-        let s1 = std::mem::replace(&mut self.s1, s1);
-        let s2 = std::mem::replace(&mut self.s2, s2);
-        Ok(GramParts { s1, s2, jtr })
+        let s1 = std::mem::replace(&mut self.s1, next.0);
+        let s2 = std::mem::replace(&mut self.s2, next.1);
+        GramParts { s1, s2, jtr }
     }
 }
 
@@ -283,6 +277,30 @@ impl GramParts {
     pub fn bytes(shape: &Shape) -> usize {
         let (da, db) = (shape.n + shape.l, shape.n + shape.r);
         8 * (packed(db) * packed(da) + strict(db) * strict(da) + shape.lti_len())
+    }
+
+    /// A part of the given pieces (tests of what sums the parts).
+    #[cfg(test)]
+    pub(crate) fn of(s1: Mat<f64>, s2: Mat<f64>, jtr: Vec<f64>) -> Self {
+        GramParts { s1, s2, jtr }
+    }
+
+    /// The bits of every entry of `S1`, `S2` and `J^T r`.
+    #[cfg(test)]
+    pub(crate) fn bits(&self) -> Vec<u64> {
+        let mats = [&self.s1, &self.s2];
+        let entries = mats
+            .iter()
+            .flat_map(|m| (0..m.ncols()).flat_map(move |j| (0..m.nrows()).map(move |i| m[(i, j)])));
+        entries
+            .chain(self.jtr.iter().copied())
+            .map(f64::to_bits)
+            .collect()
+    }
+
+    /// Its `S1` and `S2`, for reuse.
+    pub fn into_sums(self) -> (Mat<f64>, Mat<f64>) {
+        (self.s1, self.s2)
     }
 
     /// Add another part of the same point.

@@ -14,9 +14,11 @@ use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use crate::memory::{try_grow, try_vec};
 use crate::objective::{GaussNewton, Objective};
+use crate::point_sums::PointSums;
 use crate::response::with_constant;
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Real residuals per task (the unit of parallel work).
 const TASK_COLUMNS: usize = 1024;
@@ -133,34 +135,34 @@ impl Problem {
         let forms = self.forms(theta);
         let lti = self.shape.lti_len();
         let mut residual = try_vec(self.n_residuals(), C64::new(0.0, 0.0), "the residuals")?;
-        let parts = self
-            .split(&mut residual)
+        // The tasks in parallel, every point's parts summed in task order
+        // as they finish; then every point's Gram matrix unfolded, the
+        // points in parallel.
+        let per_task = lines_per_task(&self.shape);
+        let sums = PointSums::new(self.data.n_points());
+        let spare = Mutex::new(Vec::new());
+        self.split(&mut residual)
             .into_par_iter()
-            .map_init(
-                || Workspace::new(&self.shape),
-                |ws, (task, slice)| match ws {
-                    Ok(ws) => self.task_gram(&forms[task.point], task, slice, ws),
-                    Err(e) => Err(e.clone()),
+            .try_for_each_init(
+                || Lent::from(&spare, &self.shape),
+                |ws, (task, slice)| {
+                    let ws = ws.as_mut().map_err(|e| e.clone())?.get()?;
+                    let part = self.task_gram(&forms[task.point], task, slice, ws, &sums)?;
+                    sums.add(task.point, task.first / per_task, part);
+                    Ok::<_, Error>(())
                 },
-            )
-            .collect::<Result<Vec<_>>>()?;
-        // Sum the tasks of every point and unfold its Gram matrix, the
-        // points in parallel (each sums its tasks in task order).
-        let n_points = self.data.n_points();
-        let mut by_point: Vec<Vec<GramParts>> = (0..n_points).map(|_| Vec::new()).collect();
-        for part in parts {
-            by_point[part.point].push(part.parts);
-        }
-        let unfolded = by_point
+            )?;
+        let sums = sums
+            .into_sums()
+            .ok_or_else(|| Error::Internal("a task's Gram pieces went missing".into()))?;
+        let unfolded = sums
             .into_par_iter()
-            .map(|tasks| {
-                let mut tasks = tasks.into_iter();
-                let Some(mut sum) = tasks.next() else {
+            .map(|sum| match sum {
+                Some(sum) => Ok((sum.gram(&self.shape)?, sum.jtr)),
+                None => {
                     let empty = "the Gram matrix of one scheduling point";
-                    return Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]));
-                };
-                tasks.for_each(|t| sum.merge(&t));
-                Ok((sum.gram(&self.shape)?, sum.jtr))
+                    Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]))
+                }
             })
             .collect::<Result<Vec<_>>>()?;
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
@@ -244,10 +246,13 @@ impl Problem {
         task: Task,
         slice: &mut [C64],
         ws: &mut Workspace,
-    ) -> Result<TaskGram> {
+        sums: &PointSums,
+    ) -> Result<GramParts> {
         let lr = self.shape.l * self.shape.r;
         let q = task.point;
         let acc = &mut ws.gram;
+        // The accumulator's next sums, had before it fills (it is empty now).
+        let next = sums.zeroed(&self.shape)?;
         let mut w = vec![[0.0; LANES]; lr];
         let mut err = vec![Cx::default(); lr];
         for first in (task.first..task.end).step_by(LANES) {
@@ -271,10 +276,7 @@ impl Problem {
             }
             acc.add(&ws.resolvent, &w, &err);
         }
-        Ok(TaskGram {
-            point: q,
-            parts: acc.finish(&self.shape)?,
-        })
+        Ok(acc.finish(&self.shape, next))
     }
 
     /// Gradient and `J^T J` over the free parameters from the per-point
@@ -367,10 +369,46 @@ impl Workspace {
     }
 }
 
-/// One task's contribution to its point's Gram matrix and `J^T r`.
-struct TaskGram {
-    point: usize,
-    parts: GramParts,
+/// A workspace lent to one piece of a parallel loop, given back to the
+/// spares when the piece is done: rayon starts every piece it splits off
+/// with a fresh state, a dozen or more per evaluation, and a workspace
+/// holds megabytes of sample buffers (5.3 MB at n = 24 3 x 3).
+struct Lent<'a> {
+    ws: Option<Workspace>,
+    spare: &'a Mutex<Vec<Workspace>>,
+}
+
+impl<'a> Lent<'a> {
+    /// A spare workspace, or a new one.
+    fn from(spare: &'a Mutex<Vec<Workspace>>, shape: &Shape) -> Result<Self> {
+        let kept = spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let ws = match kept {
+            Some(ws) => ws,
+            None => Workspace::new(shape)?,
+        };
+        Ok(Lent {
+            ws: Some(ws),
+            spare,
+        })
+    }
+
+    /// The workspace (held until the loan is dropped).
+    fn get(&mut self) -> Result<&mut Workspace> {
+        self.ws
+            .as_mut()
+            .ok_or_else(|| Error::Internal("a lent workspace was given back early".into()))
+    }
+}
+
+impl Drop for Lent<'_> {
+    fn drop(&mut self) {
+        if let Some(ws) = self.ws.take() {
+            self.spare
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(ws);
+        }
+    }
 }
 
 impl Objective for Problem {

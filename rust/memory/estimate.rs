@@ -112,21 +112,24 @@ pub fn frf_evaluation(
     let forms = n_points * floats(2 * n * n + n * r + l * n + l * r);
     let residual = n_points * n_lines * l * r * C64;
     let base = forms + residual;
-    // Stage 1: per thread a resolvent and a Gram accumulator; every block
-    // of lines leaves its Gram pieces until the points are summed.
+    // Stage 1: per thread a resolvent and a Gram accumulator, and the
+    // zeroed sums of its next task; every point's running sum of its
+    // tasks' parts, and the parts that wait for an earlier task of their
+    // point (`crate::point_sums`: a thread works through a run of tasks in
+    // order, so the parts of at most one point per thread wait), never
+    // more than every task's part.
     let resolvent = CX * (n * n + 2 * n + 2 * n * r + 2 * n * l + l * r) + n * LANES;
     let workspace = resolvent + KronGram::bytes(shape);
     let tasks_per_point = n_lines.div_ceil(lines_per_task(shape));
     let part = GramParts::bytes(shape);
-    let parts = n_points * tasks_per_point * part;
-    let stage1 = threads * workspace + parts;
-    // Stage 2: the points' pieces summed and unfolded into Gram matrices
-    // (the points in parallel: pieces of the points not yet summed, Gram
-    // matrices of those done).
+    let parts = part * (n_points * tasks_per_point).min(n_points + threads * tasks_per_point);
+    let stage1 = threads * (workspace + part) + parts;
+    // Stage 2: every point's sum unfolded into its Gram matrix (the points
+    // in parallel: the sums not yet unfolded, the Gram matrices of those
+    // done).
     let gram_point = square(lti) + floats(lti);
     let busy = threads.min(n_points);
-    let stage2 =
-        (parts + busy * gram_point).max(n_points * gram_point + busy * tasks_per_point * part);
+    let stage2 = n_points * part.max(gram_point) + busy * gram_point;
     // Stage 3: the sums of every pair of basis functions, and J^T J.
     let result = square(n_free) + floats(n_free);
     let stage3 = n_points * gram_point + m * (m + 1) / 2 * square(lti) + result;
