@@ -26,7 +26,9 @@ some are fixed), ``L = (n + l)(n + r)`` parameters of one LTI model,
 terms of the estimate; :func:`fit_memory` gives the whole of it):
 
 - one Gauss-Newton evaluation of FRF data, the largest of
-  ``4 L^2 N ceil(F / F_t)`` (the Gram pieces of every block of lines),
+  ``4 L^2 min(N B, N + t B)`` with ``B = ceil(F / F_t)`` blocks of lines
+  per point (each point's running sum of its blocks' Gram pieces, and the
+  pieces that wait for an earlier block of their point),
   ``8 L^2 N`` plus ``4 L^2 (Nb + 1)(Nb + 2)`` (the points' Gram matrices
   and their sums per pair of basis functions) plus ``8 P^2`` (``J^T J``),
   and ``16 N F l r`` for the residuals;
