@@ -10,7 +10,7 @@ use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_s
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
-use faer::{Mat, MatMut, Par};
+use faer::{Mat, MatMut, MatRef, Par};
 
 /// Work (in flops) from which a dense kernel here uses every thread of the
 /// pool. Measured on two cores: the Cholesky factorisation 1.4x at 900-1700
@@ -59,8 +59,8 @@ pub fn factor_lower(a: MatMut<'_, f64>) -> Result<bool> {
 }
 
 /// Solve `L L^T x = b` in place.
-pub fn cholesky_solve(l: &Mat<f64>, mut b: MatMut<'_, f64>) {
-    solve_lower_triangular_in_place(l.as_ref(), b.as_mut(), Par::Seq);
+pub fn cholesky_solve(l: MatRef<'_, f64>, mut b: MatMut<'_, f64>) {
+    solve_lower_triangular_in_place(l, b.as_mut(), Par::Seq);
     solve_upper_triangular_in_place(l.transpose(), b.as_mut(), Par::Seq);
 }
 
@@ -100,7 +100,7 @@ mod tests {
             }
         }
         let mut x = Mat::from_fn(3, 1, |i, _| i as f64 + 1.0);
-        cholesky_solve(&raw, x.as_mut());
+        cholesky_solve(raw.as_ref(), x.as_mut());
         let ax = &a * &x;
         for i in 0..3 {
             assert!((ax[(i, 0)] - (i as f64 + 1.0)).abs() < 1e-13);
@@ -148,7 +148,7 @@ mod tests {
         let solved = |f: &Mat<f64>, which: usize| {
             let mut x = rhs.clone();
             match which {
-                0 => cholesky_solve(f, x.as_mut()),
+                0 => cholesky_solve(f.as_ref(), x.as_mut()),
                 1 => lower_solve(f, x.as_mut()),
                 _ => lower_transpose_solve(f, x.as_mut()),
             }

@@ -4,15 +4,16 @@
 //! `D = diag(J^T J)` (method.md (18) with `mu = lambda^2`), by Cholesky.
 //! The damping follows the gain ratio (actual over predicted decrease).
 
-use crate::dense::{cholesky, cholesky_solve};
+use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::{invalid, Result};
 use crate::fit::{
     check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
 };
 use crate::layout::FreeSet;
-use crate::memory::try_mat;
+use crate::memory::try_par_columns;
 use crate::objective::{GaussNewton, Objective};
-use faer::Mat;
+use faer::{Mat, MatMut};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Settings of [`levenberg_marquardt`].
@@ -81,21 +82,26 @@ pub fn marquardt_diagonal(gn: &GaussNewton) -> Vec<f64> {
 /// factor cannot be had.
 pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64>>> {
     let m = gn.dim();
-    // A copy (the factorisation overwrites it), then the diagonal.
-    let mut mat = try_mat(
+    // A copy (the factorisation overwrites it) with the damped diagonal.
+    let mut factor = try_par_columns(
         m,
         m,
-        |i, j| gn.gram[i + j * m],
+        |i, j| {
+            let g = gn.gram[i + j * m];
+            if i == j {
+                g + mu * diag[i]
+            } else {
+                g
+            }
+        },
         "the factor of the Levenberg-Marquardt step",
     )?;
-    for (i, d) in diag.iter().enumerate() {
-        mat[(i, i)] = gn.gram[i + i * m] + mu * d;
-    }
-    let Some(l) = cholesky(mat)? else {
+    let mut l = MatMut::from_column_major_slice_mut(&mut factor, m, m);
+    if !factor_lower(l.as_mut())? {
         return Ok(None);
-    };
+    }
     let mut d = Mat::from_fn(m, 1, |i, _| -0.5 * gn.gradient[i]);
-    cholesky_solve(&l, d.as_mut());
+    cholesky_solve(l.as_ref(), d.as_mut());
     let d: Vec<f64> = (0..m).map(|i| d[(i, 0)]).collect();
     Ok(d.iter().all(|v| v.is_finite()).then_some(d))
 }
@@ -108,11 +114,14 @@ pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64
 pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
     let m = gn.dim();
     let gd: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
-    let mut quad = 0.0;
-    for j in 0..m {
-        let col = &gn.gram[j * m..(j + 1) * m];
-        quad += d[j] * col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>();
-    }
+    // Each column's sum in order (the columns in parallel), then their
+    // weighted sum in column order.
+    let columns: Vec<f64> = gn
+        .gram
+        .par_chunks(m.max(1))
+        .map(|col| col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>())
+        .collect();
+    let quad = columns.iter().zip(d).fold(0.0, |q, (c, x)| q + x * c);
     -(gd + quad)
 }
 

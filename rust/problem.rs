@@ -12,7 +12,7 @@ use crate::kron_gram::{GramParts, KronGram};
 use crate::lanes::{Cx, LANES};
 use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
-use crate::memory::{try_grow, try_vec};
+use crate::memory::{try_grow, try_par_columns, try_vec};
 use crate::objective::{GaussNewton, Objective};
 use crate::point_sums::PointSums;
 use crate::response::with_constant;
@@ -331,14 +331,15 @@ impl Problem {
         }
         // Entry (a, b) is S_ij[p_a, p_b] with i <= j the two basis indices
         // (S_ij is symmetric as every H_q is): whole columns, in parallel.
-        let mut gram = try_vec(nf * nf, 0.0, "the Gauss-Newton matrix J^T J")?;
-        gram.par_chunks_mut(nf.max(1))
-            .zip(&map)
-            .for_each(|(col, &(j, pv))| {
-                for (out, &(i, pu)) in col.iter_mut().zip(&map) {
-                    *out = sums[slot[i.min(j) * m + i.max(j)]][pu + pv * lti];
-                }
-            });
+        let gram = try_par_columns(
+            nf,
+            nf,
+            |u, v| {
+                let ((i, pu), (j, pv)) = (map[u], map[v]);
+                sums[slot[i.min(j) * m + i.max(j)]][pu + pv * lti]
+            },
+            "the Gauss-Newton matrix J^T J",
+        )?;
         let gradient = free
             .indices()
             .iter()

@@ -331,7 +331,7 @@ fn iterate(
             return Ok(gave_up);
         }
         let mut step = Mat::from_fn(n, 1, |i, _| -grad[i]);
-        cholesky_solve(p, step.as_mut());
+        cholesky_solve(p.as_ref(), step.as_mut());
         let dx: Vec<f64> = (0..n).map(|i| step[(i, 0)]).collect();
         let decrement = -dot(&grad, &dx);
         let value = 0.5 * dot(&x, &px) + dot(q, &x);
