@@ -26,8 +26,13 @@ pub const BIG: usize = 4 << 20;
 /// Mapped blocks are whole multiples of this (a huge page).
 pub const CLASS: usize = 2 << 20;
 
-/// Most bytes of freed blocks kept for reuse.
-pub const KEEP_BYTES: usize = 256 << 20;
+/// Most bytes of freed blocks kept for reuse: room for the two largest of
+/// an n = 32 4 x 4 step (`J^T J` and the Levenberg-Marquardt factor, 336
+/// MB each). With 256 MB they were never kept and every step mapped and
+/// faulted them in afresh: n = 32's `identify` took 67 s of system time
+/// and 455 s, now 42 s and 437 s, its peak 1.51 -> 2.01 GB (the same
+/// model; one run each, 2026-11-27).
+pub const KEEP_BYTES: usize = 1 << 30;
 
 /// Most freed blocks kept for reuse.
 const KEEP_BLOCKS: usize = 16;

@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: Resident memory per byte of a run's arrays at their peak: blocks freed
-#: and kept by the allocators for reuse (the extension's keeps up to 256 MB
+#: and kept by the allocators for reuse (the extension's keeps up to 1 GB
 #: of its large blocks, ``rust/memory/blocks.rs``; glibc's heaps up to
 #: 16 MB at their tops) make the process grow by more than the arrays alive
 #: at once. Measured with ``benches/bench_scale.py`` (identify's own growth
