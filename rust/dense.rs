@@ -2,15 +2,34 @@
 //! few hundred wide (thread start-up costs more than it saves); kernels of
 //! more work ([`par_for`]: the Levenberg-Marquardt step and the cone step's
 //! Schur complement at n = 16 and more) use the whole thread pool.
+//!
+//! No result may depend on the number of threads (the machine's cores, a
+//! Dask worker's): every faer call here names its parallelism. faer's own
+//! operators (`&a * &b`) and decompositions (`Mat::thin_svd`, ...) run on
+//! its global parallelism, every thread of the pool unless told otherwise,
+//! and some of them cut their sums by the number of threads: measured
+//! (faer 0.21.9, pools of one, two and four threads) a 3000 x 100 matrix
+//! times a vector and the thin SVD of a 1000 x 40 matrix differ in the last
+//! bits, and so did the pinned l2,1 fits of the positioning stage, whose
+//! kept-off directions were made orthonormal by that SVD. Products of two
+//! matrices (`gemm`) and the Cholesky factorisation gave the same bits on
+//! any number of threads up to 6480 x 200 and 2916 wide, and run on the
+//! pool where [`par_for`] says so; the matrix-vector products and the SVD
+//! run on this thread ([`product`], [`thin_svd`]). The Python module also
+//! sets faer's global parallelism to one thread when it loads, so that no
+//! faer call left to it can bring the thread count back.
 
 use crate::error::Result;
 use crate::memory::out_of_memory_for;
+use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
+use faer::linalg::matmul::matmul;
+use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
-use faer::{Mat, MatMut, MatRef, Par};
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 
 /// Work (in flops) from which a dense kernel here uses every thread of the
 /// pool. Measured on two cores: the Cholesky factorisation 1.4x at 900-1700
@@ -56,6 +75,41 @@ pub fn factor_lower(a: MatMut<'_, f64>) -> Result<bool> {
     let stack = MemStack::new(&mut mem);
     let factored = cholesky_in_place(a, Default::default(), par, stack, Default::default());
     Ok(factored.is_ok())
+}
+
+/// `a b` on this thread (see the module's note: a product with one column
+/// on faer's pool sums in another order on another number of threads).
+pub fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::zeros(a.nrows(), b.ncols());
+    matmul(out.as_mut(), Accum::Replace, a, b, 1.0, Par::Seq);
+    out
+}
+
+/// The thin SVD `m = U S V^T` on this thread: `U` (`m.nrows() x k`, `k` the
+/// smaller dimension) and the singular values, largest first; `None` when
+/// the iteration does not converge ([`crate::Error::OutOfMemory`] when its
+/// scratch space cannot be had). As faer's `Mat::thin_svd` on one thread.
+pub fn thin_svd(m: MatRef<'_, f64>) -> Result<Option<(Mat<f64>, Vec<f64>)>> {
+    let (rows, cols) = m.shape();
+    let k = rows.min(cols);
+    let mut u = Mat::zeros(rows, k);
+    let mut v = Mat::zeros(cols, k);
+    let mut s = Diag::zeros(k);
+    let thin = ComputeSvdVectors::Thin;
+    let req = svd_scratch::<f64>(rows, cols, thin, thin, Par::Seq, Default::default());
+    let mut mem = MemBuffer::try_new(req)
+        .map_err(|_| out_of_memory_for(req.size_bytes(), "the scratch space of an SVD"))?;
+    let done = svd(
+        m,
+        s.as_mut(),
+        Some(u.as_mut()),
+        Some(v.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let values = s.column_vector();
+    Ok(done.ok().map(|()| (u, (0..k).map(|i| values[i]).collect())))
 }
 
 /// Solve `L L^T x = b` in place.
@@ -161,6 +215,61 @@ mod tests {
                     assert_eq!(x[(i, j)].to_bits(), y[(i, j)].to_bits(), "solve {which}");
                 }
             }
+        }
+    }
+
+    /// `f` run on a pool of `threads` threads (faer's global parallelism is
+    /// its default here, every thread of the pool).
+    fn on<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    fn same_bits(a: &Mat<f64>, b: &Mat<f64>) -> bool {
+        a.shape() == b.shape()
+            && (0..a.ncols())
+                .all(|j| (0..a.nrows()).all(|i| a[(i, j)].to_bits() == b[(i, j)].to_bits()))
+    }
+
+    #[test]
+    fn products_and_svds_are_the_same_to_the_last_bit_on_any_number_of_threads() {
+        // Sizes at which faer's operator and `Mat::thin_svd` on its pool
+        // gave other bits on two threads than on one.
+        let mut rng = crate::testing::Lcg(5);
+        let a = Mat::from_fn(3000, 100, |_, _| rng.next_f64() - 0.5);
+        let x = Mat::from_fn(100, 1, |_, _| rng.next_f64() - 0.5);
+        let tall = Mat::from_fn(1000, 40, |_, _| rng.next_f64() - 0.5);
+        let run = || {
+            let (u, s) = thin_svd(tall.as_ref()).unwrap().unwrap();
+            (product(a.as_ref(), x.as_ref()), u, s)
+        };
+        let (ax, u, s) = on(1, run);
+        for threads in [2, 4] {
+            let (ax_t, u_t, s_t) = on(threads, run);
+            assert!(same_bits(&ax, &ax_t), "A x on {threads} threads");
+            assert!(same_bits(&u, &u_t), "U on {threads} threads");
+            assert_eq!(s, s_t, "singular values on {threads} threads");
+        }
+        // And right: A x as a plain sum; U orthonormal, the singular values
+        // falling, and the rows of U^T M (= S V^T) of norms S.
+        for i in 0..3000 {
+            let want: f64 = (0..100).map(|k| a[(i, k)] * x[(k, 0)]).sum();
+            assert!((ax[(i, 0)] - want).abs() < 1e-12, "row {i}");
+        }
+        assert_eq!(u.shape(), (1000, 40));
+        let utu = u.transpose() * &u;
+        let utm = u.transpose() * &tall;
+        for k in 0..40 {
+            for l in 0..40 {
+                let id = if k == l { 1.0 } else { 0.0 };
+                assert!((utu[(k, l)] - id).abs() < 1e-12, "U^T U ({k}, {l})");
+            }
+            assert!(k == 0 || s[k] <= s[k - 1]);
+            let row = (0..40).map(|j| utm[(k, j)].powi(2)).sum::<f64>().sqrt();
+            assert!((row - s[k]).abs() < 1e-12 * s[0], "singular value {k}");
         }
     }
 

@@ -181,7 +181,10 @@ pub fn fit_l21(
     // The kept-off directions, made orthonormal once in the metric of the
     // first step.
     let mu0 = Damping::new(settings.lambda0).mu;
-    let pinned = pinned.and_then(|p| p.basis(&jacobi_scale(&gn, &diag, mu0, m_res)));
+    let pinned = match pinned {
+        Some(p) => p.basis(&jacobi_scale(&gn, &diag, mu0, m_res))?,
+        None => None,
+    };
     // The stopping tests run at the top of every reweighting and once more
     // after the last one the limit allows: a fit whose last reweighting
     // settled it has converged, not run out of iterations.

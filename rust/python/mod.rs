@@ -40,6 +40,10 @@ const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARG
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     #[cfg(target_os = "linux")]
     crate::memory::blocks::system_heaps();
+    // faer's calls that are not told their parallelism run on one thread:
+    // some of them sum in another order on another number of threads (see
+    // `crate::dense`), and no result may depend on the machine's cores.
+    faer::set_global_parallelism(faer::Par::Seq);
     // The package version, from Cargo.toml (lpvid.__version__).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("__target_features__", TARGET_FEATURES)?;

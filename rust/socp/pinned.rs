@@ -11,6 +11,7 @@
 //! exempt directions) change nothing anywhere, so the steps stay free along
 //! them.
 
+use crate::dense::{par_for, product, thin_svd};
 use crate::error::Result;
 use crate::memory::try_zeros;
 use faer::linalg::matmul::matmul;
@@ -46,50 +47,59 @@ pub struct PinnedBasis {
 /// values up to `RANK_TOL` times `reference` (or the largest, if larger)
 /// dropped: a caller that projected `m` passes its size before, so that
 /// what the projection left as rounding is not taken for a direction.
-/// `None` when the SVD fails.
-fn orthonormal(m: MatRef<'_, f64>, reference: f64) -> Option<Mat<f64>> {
+/// `None` when the SVD fails. On this thread ([`thin_svd`]: on faer's pool
+/// the directions, and the fits kept off them, followed the thread count).
+fn orthonormal(m: MatRef<'_, f64>, reference: f64) -> Result<Option<Mat<f64>>> {
     if m.ncols() == 0 || m.nrows() == 0 {
-        return Some(Mat::zeros(m.nrows(), 0));
+        return Ok(Some(Mat::zeros(m.nrows(), 0)));
     }
-    let svd = m.thin_svd().ok()?;
-    let s = svd.S().column_vector();
-    let top = (0..s.nrows()).map(|k| s[k]).fold(reference, f64::max);
-    let keep: Vec<usize> = (0..s.nrows())
+    let Some((u, s)) = thin_svd(m)? else {
+        return Ok(None);
+    };
+    let top = s.iter().copied().fold(reference, f64::max);
+    let keep: Vec<usize> = (0..s.len())
         .filter(|&k| top > 0.0 && s[k] > RANK_TOL * top)
         .collect();
-    let u = svd.U();
-    Some(Mat::from_fn(m.nrows(), keep.len(), |i, c| u[(i, keep[c])]))
+    Ok(Some(Mat::from_fn(m.nrows(), keep.len(), |i, c| {
+        u[(i, keep[c])]
+    })))
 }
 
 impl Pinned {
     /// The directions in the scaled variables `e = d / scale0` of a fit's
     /// first step: orthonormal, with the exempt ones projected out. `None`
-    /// when the sizes do not match `scale0` or nothing is left to keep off.
-    pub fn basis(&self, scale0: &[f64]) -> Option<PinnedBasis> {
+    /// when the sizes do not match `scale0`, an SVD fails or nothing is left
+    /// to keep off ([`crate::Error::OutOfMemory`] when an SVD's scratch space
+    /// cannot be had).
+    pub fn basis(&self, scale0: &[f64]) -> Result<Option<PinnedBasis>> {
         let nf = scale0.len();
         if self.dirs.nrows() != nf
             || self.exempt.nrows() != nf
             || self.weight == 0.0
             || scale0.iter().any(|s| !(s.is_finite() && *s > 0.0))
         {
-            return None;
+            return Ok(None);
         }
         let scaled = |m: &Mat<f64>| Mat::from_fn(nf, m.ncols(), |i, c| m[(i, c)] / scale0[i]);
-        let g = orthonormal(scaled(&self.exempt).as_ref(), 0.0)?;
+        let Some(g) = orthonormal(scaled(&self.exempt).as_ref(), 0.0)? else {
+            return Ok(None);
+        };
         let mut w = scaled(&self.dirs);
         let before = w.norm_l2();
         if g.ncols() > 0 {
-            let proj = &g * (g.transpose() * &w);
-            w -= proj;
+            let gw = product(g.transpose(), w.as_ref());
+            w -= product(g.as_ref(), gw.as_ref());
         }
-        let v = orthonormal(w.as_ref(), before)?;
+        let Some(v) = orthonormal(w.as_ref(), before)? else {
+            return Ok(None);
+        };
         if v.ncols() == 0 {
-            return None;
+            return Ok(None);
         }
-        Some(PinnedBasis {
+        Ok(Some(PinnedBasis {
             u: Mat::from_fn(nf, v.ncols(), |i, c| v[(i, c)] / scale0[i]),
             weight: self.weight,
-        })
+        }))
     }
 }
 
@@ -104,8 +114,8 @@ impl PinnedBasis {
         });
         let nf = su.nrows();
         let mut out = try_zeros(nf, nf, "the curvature along the pinned directions")?;
-        // As `&su * su.transpose()` computes it.
-        let par = faer::get_global_parallelism();
+        // A product of two matrices: the same bits on any number of threads.
+        let par = par_for((nf * nf * su.ncols()) as f64);
         matmul(out.as_mut(), Accum::Replace, &su, su.transpose(), 1.0, par);
         Ok(out)
     }
@@ -150,7 +160,10 @@ mod tests {
             exempt: exempt.clone(),
             weight: 2.0,
         };
-        let basis = pinned.basis(&scale0).expect("two directions are left");
+        let basis = pinned
+            .basis(&scale0)
+            .unwrap()
+            .expect("two directions are left");
         assert_eq!(basis.u.ncols(), 2);
         let v = Mat::from_fn(nf, 2, |i, c| basis.u[(i, c)] * scale0[i]);
         let gram = v.transpose() * &v;
@@ -179,7 +192,7 @@ mod tests {
             weight: 1.5,
         };
         let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + 0.1 * i as f64).collect();
-        let basis = pinned.basis(&scale0).expect("directions are left");
+        let basis = pinned.basis(&scale0).unwrap().expect("directions are left");
         let scale: Vec<f64> = (0..nf).map(|i| 0.3 + 0.2 * i as f64).collect();
         let curvature = basis.scaled_curvature(&scale).unwrap();
         let d: Vec<f64> = (0..nf).map(|i| (i as f64 * 1.7).cos()).collect();
@@ -205,18 +218,19 @@ mod tests {
             exempt: exempt.clone(),
             weight: 1.0,
         };
-        assert!(within.basis(&scale0).is_none());
+        assert!(within.basis(&scale0).unwrap().is_none());
         let unweighted = Pinned {
             dirs: filled(nf, 2, 3.0),
             exempt,
             weight: 0.0,
         };
-        assert!(unweighted.basis(&scale0).is_none());
+        assert!(unweighted.basis(&scale0).unwrap().is_none());
         assert!(Pinned {
             weight: 1.0,
             ..unweighted.clone()
         }
         .basis(&[1.0, f64::NAN, 1.0, 1.0, 1.0])
+        .unwrap()
         .is_none());
     }
     #[test]
@@ -233,7 +247,7 @@ mod tests {
             exempt: Mat::zeros(3, 0),
             weight,
         };
-        let basis = pinned.basis(&s0).expect("one direction");
+        let basis = pinned.basis(&s0).unwrap().expect("one direction");
         assert_eq!(basis.u.ncols(), 1);
         let n2: f64 = (0..3).map(|i| (d[i] / s0[i]).powi(2)).sum();
         let s = [0.3, 1.5, 0.8];
@@ -269,21 +283,21 @@ mod tests {
             weight: 1.0,
         };
         let scale0 = vec![1.0; nf];
-        assert!(good.basis(&scale0).is_some());
+        assert!(good.basis(&scale0).unwrap().is_some());
         let short_dirs = Pinned {
             dirs: filled(nf - 1, 2, 0.9),
             ..good.clone()
         };
-        assert!(short_dirs.basis(&scale0).is_none());
+        assert!(short_dirs.basis(&scale0).unwrap().is_none());
         let short_exempt = Pinned {
             exempt: filled(nf + 1, 1, 1.7),
             ..good.clone()
         };
-        assert!(short_exempt.basis(&scale0).is_none());
+        assert!(short_exempt.basis(&scale0).unwrap().is_none());
         for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
             let mut s = scale0.clone();
             s[2] = bad;
-            assert!(good.basis(&s).is_none(), "{bad}");
+            assert!(good.basis(&s).unwrap().is_none(), "{bad}");
         }
     }
 
@@ -299,17 +313,22 @@ mod tests {
             weight: 1.0,
         };
         let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + i as f64).collect();
-        assert_eq!(pinned.basis(&scale0).unwrap().u.ncols(), 1);
+        assert_eq!(pinned.basis(&scale0).unwrap().unwrap().u.ncols(), 1);
         // A matrix of zeros has no direction, an empty one none either.
         assert_eq!(
             orthonormal(Mat::<f64>::zeros(3, 2).as_ref(), 0.0)
                 .unwrap()
+                .unwrap()
                 .ncols(),
             0
         );
-        let empty = orthonormal(Mat::<f64>::zeros(3, 0).as_ref(), 1.0).unwrap();
+        let empty = orthonormal(Mat::<f64>::zeros(3, 0).as_ref(), 1.0)
+            .unwrap()
+            .unwrap();
         assert_eq!((empty.nrows(), empty.ncols()), (3, 0));
-        let no_rows = orthonormal(Mat::<f64>::zeros(0, 2).as_ref(), 1.0).unwrap();
+        let no_rows = orthonormal(Mat::<f64>::zeros(0, 2).as_ref(), 1.0)
+            .unwrap()
+            .unwrap();
         assert_eq!((no_rows.nrows(), no_rows.ncols()), (0, 0));
         // A second direction at eps/2 of the largest singular value is
         // dropped below RANK_TOL and kept above it, at any magnitude.
@@ -320,12 +339,14 @@ mod tests {
                     (1, 1) => size * eps,
                     _ => 0.0,
                 });
-                let got = orthonormal(m.as_ref(), 0.0).unwrap().ncols();
+                let got = orthonormal(m.as_ref(), 0.0).unwrap().unwrap().ncols();
                 assert_eq!(got, kept, "size {size}, eps {eps}");
             }
         }
         // Full rank: every column kept, orthonormal.
-        let full = orthonormal(filled(4, 3, 0.2).as_ref(), 0.0).unwrap();
+        let full = orthonormal(filled(4, 3, 0.2).as_ref(), 0.0)
+            .unwrap()
+            .unwrap();
         assert_eq!(full.ncols(), 3);
         let gram = full.transpose() * &full;
         for a in 0..3 {
@@ -333,6 +354,37 @@ mod tests {
                 let want = if a == b { 1.0 } else { 0.0 };
                 assert!((gram[(a, b)] - want).abs() < 1e-12);
             }
+        }
+    }
+
+    #[test]
+    fn the_basis_is_the_same_to_the_last_bit_on_any_number_of_threads() {
+        // Sizes at which the SVD on faer's pool gave other bits on two
+        // threads than on one (so did the pinned fits of the positioning
+        // stage built on it).
+        let nf = 1200;
+        let pinned = Pinned {
+            dirs: filled(nf, 40, 0.7),
+            exempt: filled(nf, 4, 0.1),
+            weight: 2.0,
+        };
+        let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + (i % 7) as f64).collect();
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| pinned.basis(&scale0).unwrap().expect("directions are left"))
+        };
+        let one = on(1);
+        assert_eq!(one.u.ncols(), 40);
+        for threads in [2, 4] {
+            let other = on(threads);
+            let differ = (0..40)
+                .flat_map(|c| (0..nf).map(move |i| (i, c)))
+                .filter(|&(i, c)| one.u[(i, c)].to_bits() != other.u[(i, c)].to_bits())
+                .count();
+            assert_eq!(differ, 0, "{differ} entries differ on {threads} threads");
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use super::newton::{newton, Newton};
 use super::{ConeGroup, ConeProblem, ConeSolver};
-use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for};
+use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for, product};
 use crate::error::Result;
 use crate::memory::try_mat;
 use clarabel::solver::SolverStatus;
@@ -131,7 +131,7 @@ impl ConeProblem<'_> {
                     -1.0,
                     par_for((nk * nk * nu) as f64),
                 );
-                let wtv = w.transpose() * &v;
+                let wtv = product(w.transpose(), v.as_ref());
                 q_red
                     .iter_mut()
                     .enumerate()
@@ -203,7 +203,11 @@ impl ConeProblem<'_> {
         }
         if let Some((l, w, v)) = elimination {
             let e_g = Mat::from_fn(nk, 1, |a, _| x_g[a]);
-            let mut rhs = if nk > 0 { &v + &w * &e_g } else { v };
+            let mut rhs = if nk > 0 {
+                &v + product(w.as_ref(), e_g.as_ref())
+            } else {
+                v
+            };
             lower_transpose_solve(&l, rhs.as_mut());
             for (a, &p) in others.iter().enumerate() {
                 e[p] = -rhs[(a, 0)];

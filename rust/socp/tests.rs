@@ -207,7 +207,7 @@ fn model_gradient_is_g_over_m_plus_the_damped_quadratic_times_d() {
         exempt: Mat::zeros(2, 0),
         weight: 2.0,
     };
-    let basis = pinned.basis(&[1.0, 1.0]).unwrap();
+    let basis = pinned.basis(&[1.0, 1.0]).unwrap().unwrap();
     let kept = ConeProblem {
         pinned: Some(&basis),
         newton: true,

@@ -226,7 +226,7 @@ fn a_pinned_direction_adds_its_curvature_to_the_step() {
         exempt: Mat::zeros(8, 0),
         weight: 3.0,
     };
-    c.pinned = pinned.basis(&[1.0; 8]);
+    c.pinned = pinned.basis(&[1.0; 8]).unwrap();
     let d = c.solve().step.unwrap();
     assert_optimal(&c, &d, Some(&curvature), 1.0);
     // Without the curvature the conditions fail: the pin moved the step.
