@@ -7,6 +7,9 @@ after one round: every kind of piece identify hands out is there.
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import warnings
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from typing import Any
@@ -15,6 +18,7 @@ import numpy as np
 import pytest
 
 import lpvid
+import lpvid.testing
 from lpvid._spread import Spread
 
 
@@ -151,3 +155,63 @@ def test_executor_must_be_an_executor(stage):
     ds, _ = stage
     with pytest.raises(TypeError, match="executor: expected a concurrent.futures.Executor"):
         lpvid.identify(ds.identification, ds.order, ds.basis, executor=2)
+
+
+# The positioning stage without its `fixed` keeps a pinned fit, whose
+# kept-off directions are made orthonormal by an SVD: on faer's thread pool
+# that SVD (and a matrix-vector product of the cone step) summed in another
+# order on one thread than on two, and the returned model differed.
+_ON_THREADS = """
+import hashlib, warnings
+import lpvid
+ds = lpvid.datasets.positioning_stage(seed=0)
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    r = lpvid.identify(ds.identification, ds.order, ds.basis, validation=ds.validation)
+print(hashlib.sha1(r.model.theta.tobytes()).hexdigest(), any(e.pinned for e in r.entries))
+"""
+
+
+def test_identify_is_the_same_on_any_number_of_threads():
+    """Pools of one thread and of three give the same run (a Dask worker has its own cores)."""
+    out = {}
+    for threads in (1, 3):  # each in a process of its own: the pool is made once per process
+        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
+        done = subprocess.run(
+            [sys.executable, "-c", _ON_THREADS],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert done.returncode == 0, done.stderr
+        out[threads] = done.stdout.split()
+    assert out[1][1] == "True"  # the pinned fit was kept
+    assert out[1][0] == out[3][0]
+
+
+def test_identify_lti_is_the_same_whatever_the_layout_of_the_data():
+    """A transposed sigma gives the bits of its C-ordered copy (what a pickled copy is).
+
+    numpy sums along a strided axis in another order than along a
+    contiguous one; the data's arrays are stored C-ordered whatever the
+    caller passed (before, the subspace step's weights differed in the last
+    bits, and every local model with them).
+    """
+    rng = np.random.default_rng(3)
+    true = lpvid.testing.random_lpv(rng, n=6, r=2, l=2, nb=0, Ts=None)
+    f = np.linspace(0.05, 3.0, 300)
+    clean = true.frf(f, [0.0])
+    sigma = 0.01 * (1.0 + rng.random(clean.shape))
+    noise = rng.standard_normal(clean.shape) + 1j * rng.standard_normal(clean.shape)
+    G = clean + sigma * noise / np.sqrt(2.0)
+    transposed = np.asfortranarray(sigma)
+    assert not transposed.flags["C_CONTIGUOUS"]
+    data = lpvid.FrfData([0.0], f, G, sigma=transposed)
+    assert data.sigma.flags["C_CONTIGUOUS"] and data.G.flags["C_CONTIGUOUS"]
+    (a,) = lpvid.identify_lti(lpvid.FrfData([0.0], f, G, sigma=sigma), 6)
+    (b,) = lpvid.identify_lti(data, 6)
+    assert np.array_equal(a.theta, b.theta)
+    assert (
+        lpvid.vnls(a, data) < 1.5 * data.n_residuals
+    )  # a fit at the noise, not two equal failures

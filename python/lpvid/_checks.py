@@ -16,7 +16,17 @@ from numpy.typing import NDArray
 def real_array(
     value: Any, name: str, ndim: int | tuple[int, ...] | None = None
 ) -> NDArray[np.float64]:
-    """Return ``value`` as a finite float64 array, or raise naming ``name``."""
+    """Return ``value`` as a finite float64 array, or raise naming ``name``.
+
+    Always a new C-ordered array: numpy sums along a strided axis in
+    another order than along a contiguous one (pairwise summation only
+    within contiguous runs), so a result computed from a transposed or
+    sliced input would change in the last bits when the same values arrive
+    laid out otherwise (a copy sent to another process, a Dask worker).
+    Measured: the local models of ``benches/bench_scale.py``'s n16 rung,
+    whose sigma was a transposed array, and with them every fit after,
+    differed between ``identify`` here and on a process pool.
+    """
     try:
         arr = np.asarray(value)
     except Exception as exc:  # pragma: no cover - numpy raises many types
@@ -27,7 +37,7 @@ def real_array(
         np.issubdtype(arr.dtype, np.number) or np.issubdtype(arr.dtype, np.bool_)
     ):
         raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
-    arr = arr.astype(np.float64)
+    arr = np.array(arr, dtype=np.float64, order="C")
     _check_ndim(arr, name, ndim)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name}: contains NaN or Inf")
@@ -37,14 +47,17 @@ def real_array(
 def complex_array(
     value: Any, name: str, ndim: int | tuple[int, ...] | None = None
 ) -> NDArray[np.complex128]:
-    """Return ``value`` as a finite complex128 array, or raise naming ``name``."""
+    """Return ``value`` as a finite complex128 array, or raise naming ``name``.
+
+    A new C-ordered array, as :func:`real_array`.
+    """
     try:
         arr = np.asarray(value)
     except Exception as exc:  # pragma: no cover
         raise TypeError(f"{name}: cannot be read as an array ({exc})") from exc
     if arr.dtype == object or not np.issubdtype(arr.dtype, np.number):
         raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
-    arr = arr.astype(np.complex128)
+    arr = np.array(arr, dtype=np.complex128, order="C")
     _check_ndim(arr, name, ndim)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name}: contains NaN or Inf")
