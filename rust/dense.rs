@@ -132,6 +132,7 @@ pub fn lower_transpose_solve(l: &Mat<f64>, b: MatMut<'_, f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::on_threads;
 
     /// The lower triangle of `a`.
     fn lower(a: &Mat<f64>) -> Mat<f64> {
@@ -218,16 +219,6 @@ mod tests {
         }
     }
 
-    /// `f` run on a pool of `threads` threads (faer's global parallelism is
-    /// its default here, every thread of the pool).
-    fn on<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(f)
-    }
-
     fn same_bits(a: &Mat<f64>, b: &Mat<f64>) -> bool {
         a.shape() == b.shape()
             && (0..a.ncols())
@@ -239,16 +230,16 @@ mod tests {
         // Sizes at which faer's operator and `Mat::thin_svd` on its pool
         // gave other bits on two threads than on one.
         let mut rng = crate::testing::Lcg(5);
-        let a = Mat::from_fn(3000, 100, |_, _| rng.next_f64() - 0.5);
-        let x = Mat::from_fn(100, 1, |_, _| rng.next_f64() - 0.5);
-        let tall = Mat::from_fn(1000, 40, |_, _| rng.next_f64() - 0.5);
+        let a = Mat::from_fn(3000, 100, |_, _| rng.next_f64());
+        let x = Mat::from_fn(100, 1, |_, _| rng.next_f64());
+        let tall = Mat::from_fn(1000, 40, |_, _| rng.next_f64());
         let run = || {
             let (u, s) = thin_svd(tall.as_ref()).unwrap().unwrap();
             (product(a.as_ref(), x.as_ref()), u, s)
         };
-        let (ax, u, s) = on(1, run);
+        let (ax, u, s) = on_threads(1, run);
         for threads in [2, 4] {
-            let (ax_t, u_t, s_t) = on(threads, run);
+            let (ax_t, u_t, s_t) = on_threads(threads, run);
             assert!(same_bits(&ax, &ax_t), "A x on {threads} threads");
             assert!(same_bits(&u, &u_t), "U on {threads} threads");
             assert_eq!(s, s_t, "singular values on {threads} threads");
@@ -279,13 +270,7 @@ mod tests {
         let mut rng = crate::testing::Lcg(3);
         let b = Mat::from_fn(n, n + 10, |_, _| rng.next_f64());
         let a = &b * b.transpose();
-        let on = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| cholesky(a.clone()).unwrap().unwrap())
-        };
+        let on = |threads: usize| on_threads(threads, || cholesky(a.clone()).unwrap().unwrap());
         let (one, two) = (on(1), on(2));
         let differ = (0..n)
             .flat_map(|j| (0..n).map(move |i| (i, j)))

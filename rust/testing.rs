@@ -8,6 +8,16 @@ use crate::time::Record;
 #[derive(Debug, Clone)]
 pub struct Lcg(pub u64);
 
+/// `f` run on a pool of its own of `threads` threads (where faer's calls
+/// on "every thread" and the core's parallel loops see that number).
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool for a test")
+        .install(f)
+}
+
 impl Lcg {
     /// The next number, uniform in `[-0.5, 0.5)`.
     pub fn next_f64(&mut self) -> f64 {

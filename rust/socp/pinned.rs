@@ -370,11 +370,9 @@ mod tests {
         };
         let scale0: Vec<f64> = (0..nf).map(|i| 1.0 + (i % 7) as f64).collect();
         let on = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| pinned.basis(&scale0).unwrap().expect("directions are left"))
+            crate::testing::on_threads(threads, || {
+                pinned.basis(&scale0).unwrap().expect("directions are left")
+            })
         };
         let one = on(1);
         assert_eq!(one.u.ncols(), 40);
