@@ -14,8 +14,9 @@
 //! kept-off directions were made orthonormal by that SVD. Products of two
 //! matrices (`gemm`) and the Cholesky factorisation gave the same bits on
 //! any number of threads up to 6480 x 200 and 2916 wide, and run on the
-//! pool where [`par_for`] says so; the matrix-vector products and the SVD
-//! run on this thread ([`product`], [`thin_svd`]). The Python module also
+//! pool where [`par_for`] says so; the matrix-vector products and the
+//! decompositions run on this thread ([`product`], [`thin_svd`],
+//! [`symmetric_eigen`]). The Python module also
 //! sets faer's global parallelism to one thread when it loads, so that no
 //! faer call left to it can bring the thread count back.
 
@@ -24,6 +25,7 @@ use crate::memory::out_of_memory_for;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
+use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
 use faer::linalg::matmul::matmul;
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
 use faer::linalg::triangular_solve::{
@@ -110,6 +112,35 @@ pub fn thin_svd(m: MatRef<'_, f64>) -> Result<Option<(Mat<f64>, Vec<f64>)>> {
     );
     let values = s.column_vector();
     Ok(done.ok().map(|()| (u, (0..k).map(|i| values[i]).collect())))
+}
+
+/// The eigendecomposition `m = U diag(lambda) U^T` of a symmetric matrix
+/// (its lower triangle is read) on this thread: `U` and the eigenvalues,
+/// ascending; `None` when the iteration does not converge
+/// ([`crate::Error::OutOfMemory`] when its scratch space cannot be had).
+/// As faer's `Mat::self_adjoint_eigen(Side::Lower)` on one thread.
+pub fn symmetric_eigen(m: MatRef<'_, f64>) -> Result<Option<(Mat<f64>, Vec<f64>)>> {
+    let n = m.nrows();
+    let mut u = Mat::zeros(n, n);
+    let mut s = Diag::zeros(n);
+    let yes = ComputeEigenvectors::Yes;
+    let req = self_adjoint_evd_scratch::<f64>(n, yes, Par::Seq, Default::default());
+    let mut mem = MemBuffer::try_new(req).map_err(|_| {
+        out_of_memory_for(
+            req.size_bytes(),
+            "the scratch space of an eigendecomposition",
+        )
+    })?;
+    let done = self_adjoint_evd(
+        m,
+        s.as_mut(),
+        Some(u.as_mut()),
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let values = s.column_vector();
+    Ok(done.ok().map(|()| (u, (0..n).map(|i| values[i]).collect())))
 }
 
 /// Solve `L L^T x = b` in place.
@@ -233,16 +264,30 @@ mod tests {
         let a = Mat::from_fn(3000, 100, |_, _| rng.next_f64());
         let x = Mat::from_fn(100, 1, |_, _| rng.next_f64());
         let tall = Mat::from_fn(1000, 40, |_, _| rng.next_f64());
+        let half = Mat::from_fn(400, 400, |_, _| rng.next_f64());
+        let sym = &half + half.transpose();
         let run = || {
             let (u, s) = thin_svd(tall.as_ref()).unwrap().unwrap();
-            (product(a.as_ref(), x.as_ref()), u, s)
+            let eig = symmetric_eigen(sym.as_ref()).unwrap().unwrap();
+            (product(a.as_ref(), x.as_ref()), u, s, eig)
         };
-        let (ax, u, s) = on_threads(1, run);
+        let (ax, u, s, (q, lambda)) = on_threads(1, run);
         for threads in [2, 4] {
-            let (ax_t, u_t, s_t) = on_threads(threads, run);
+            let (ax_t, u_t, s_t, (q_t, lambda_t)) = on_threads(threads, run);
             assert!(same_bits(&ax, &ax_t), "A x on {threads} threads");
             assert!(same_bits(&u, &u_t), "U on {threads} threads");
             assert_eq!(s, s_t, "singular values on {threads} threads");
+            assert!(same_bits(&q, &q_t), "eigenvectors on {threads} threads");
+            assert_eq!(lambda, lambda_t, "eigenvalues on {threads} threads");
+        }
+        // The eigendecomposition: ascending, Q diag(lambda) Q^T = M.
+        assert!(lambda.windows(2).all(|w| w[0] <= w[1]));
+        let ql = Mat::from_fn(400, 400, |i, k| q[(i, k)] * lambda[k]);
+        let back = &ql * q.transpose();
+        for j in 0..400 {
+            for i in 0..400 {
+                assert!((back[(i, j)] - sym[(i, j)]).abs() < 1e-11, "({i}, {j})");
+            }
         }
         // And right: A x as a plain sum; U orthonormal, the singular values
         // falling, and the rows of U^T M (= S V^T) of norms S.

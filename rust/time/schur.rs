@@ -11,9 +11,10 @@
 //! largest) are left at zero.
 
 use super::sensitivity::Normal;
+use crate::dense::symmetric_eigen;
 use crate::error::{Error, Result};
 use crate::memory::try_vec;
-use faer::{Mat, Side};
+use faer::Mat;
 
 /// Eigenvalues below this fraction of the largest count as zero.
 const RELATIVE_RANK: f64 = 1e-12;
@@ -22,17 +23,15 @@ const RELATIVE_RANK: f64 = 1e-12;
 /// (`k x k` column-major): `U diag(1 / sqrt(lambda))` over the eigenvalues kept.
 fn pinv_root(g: &[f64], k: usize) -> Result<Mat<f64>> {
     let m = Mat::from_fn(k, k, |i, j| g[i + j * k]);
-    let eig = m.self_adjoint_eigen(Side::Lower).map_err(|e| {
-        Error::Numerical(format!(
-            "eigenvalues of the initial-state Gram matrix: {e:?}"
-        ))
-    })?;
-    let s = eig.S();
-    let largest = (0..k).map(|i| s[i]).fold(0.0f64, f64::max);
+    let Some((u, s)) = symmetric_eigen(m.as_ref())? else {
+        return Err(Error::Numerical(
+            "eigenvalues of the initial-state Gram matrix: the iteration did not converge".into(),
+        ));
+    };
+    let largest = s.iter().copied().fold(0.0f64, f64::max);
     let kept: Vec<usize> = (0..k)
         .filter(|&i| s[i] > RELATIVE_RANK * largest && s[i] > 0.0)
         .collect();
-    let u = eig.U();
     Ok(Mat::from_fn(k, kept.len(), |i, j| {
         u[(i, kept[j])] / s[kept[j]].sqrt()
     }))
