@@ -23,7 +23,7 @@
 use crate::error::Result;
 use crate::memory::out_of_memory_for;
 use faer::diag::Diag;
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
 use faer::linalg::matmul::matmul;
@@ -49,6 +49,12 @@ pub fn par_for(flops: f64) -> Par {
     }
 }
 
+/// The scratch space `req` of a faer kernel ([`crate::Error::OutOfMemory`],
+/// naming `what`, when it cannot be had).
+fn scratch(req: StackReq, what: &'static str) -> Result<MemBuffer> {
+    MemBuffer::try_new(req).map_err(|_| out_of_memory_for(req.size_bytes(), what))
+}
+
 /// Lower Cholesky factor `L` of a symmetric positive definite matrix
 /// (`A = L L^T`), or `None` when `A` is not numerically positive definite
 /// ([`crate::Error::OutOfMemory`] when the factorisation's scratch space
@@ -68,12 +74,7 @@ pub fn factor_lower(a: MatMut<'_, f64>) -> Result<bool> {
     let n = a.nrows();
     let par = par_for((n * n * n) as f64 / 3.0);
     let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
-    let mut mem = MemBuffer::try_new(req).map_err(|_| {
-        out_of_memory_for(
-            req.size_bytes(),
-            "the scratch space of a Cholesky factorisation",
-        )
-    })?;
+    let mut mem = scratch(req, "the scratch space of a Cholesky factorisation")?;
     let stack = MemStack::new(&mut mem);
     let factored = cholesky_in_place(a, Default::default(), par, stack, Default::default());
     Ok(factored.is_ok())
@@ -99,8 +100,7 @@ pub fn thin_svd(m: MatRef<'_, f64>) -> Result<Option<(Mat<f64>, Vec<f64>)>> {
     let mut s = Diag::zeros(k);
     let thin = ComputeSvdVectors::Thin;
     let req = svd_scratch::<f64>(rows, cols, thin, thin, Par::Seq, Default::default());
-    let mut mem = MemBuffer::try_new(req)
-        .map_err(|_| out_of_memory_for(req.size_bytes(), "the scratch space of an SVD"))?;
+    let mut mem = scratch(req, "the scratch space of an SVD")?;
     let done = svd(
         m,
         s.as_mut(),
@@ -125,12 +125,7 @@ pub fn symmetric_eigen(m: MatRef<'_, f64>) -> Result<Option<(Mat<f64>, Vec<f64>)
     let mut s = Diag::zeros(n);
     let yes = ComputeEigenvectors::Yes;
     let req = self_adjoint_evd_scratch::<f64>(n, yes, Par::Seq, Default::default());
-    let mut mem = MemBuffer::try_new(req).map_err(|_| {
-        out_of_memory_for(
-            req.size_bytes(),
-            "the scratch space of an eigendecomposition",
-        )
-    })?;
+    let mut mem = scratch(req, "the scratch space of an eigendecomposition")?;
     let done = self_adjoint_evd(
         m,
         s.as_mut(),
