@@ -8,7 +8,7 @@ import pytest
 import lpvid
 import lpvid.testing
 from lpvid.fit.judge import identify_range
-from lpvid.fit.settings import DEFAULT_GAMMAS, FORMS, ROUTES
+from lpvid.fit.settings import DEFAULT_GAMMAS, FORMS, ROUTES, START_FTOL
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +120,7 @@ def test_defaults_in_one_place_and_visible(small):
     assert s.path.l21 == lpvid.L21Settings(max_outer=10)
     assert s.path.gammas == DEFAULT_GAMMAS and s.path.tolerance == 0.1
     assert (s.starts.routes, s.starts.forms, s.starts.max_iter) == (ROUTES, FORMS, 100)
-    assert s.starts.ftol == lpvid.L21Settings().ftol and s.starts.halving
+    assert s.starts.ftol == START_FTOL and s.starts.halving
     assert (s.stable, s.refit) == (False, True)
     assert lpvid.LmSettings().to_core() == dict(
         max_iter=100, xtol=1e-10, ftol=1e-10, gtol=0.0, lambda0=1e-2

@@ -47,12 +47,14 @@ NOISE_SIGMAS = 2.0
 DEPENDENCE_TIE = 0.05
 
 #: Costs of equally simple models within this fraction of the lowest count
-#: as equal, and the first of them in the order given wins. Ten times the
-#: fits' stopping rule (:data:`lpvid.fit.settings.FTOL`: a fit ends when a
-#: step buys less than 1e-4 of V_NLS): starts that reach the same minimum
-#: by different routes end up to 3e-4 apart in validation V_NLS, and a
-#: 1e-12 change of the data moves a fit's end by as much, so a choice by
-#: the lower of two such costs followed the last bits of the data.
+#: as equal, and the first of them in the order given wins. Set at ten
+#: times the starts' stopping rule of the time (1e-4; now
+#: :data:`lpvid.fit.settings.START_FTOL`, 3e-4): starts that reach the same
+#: minimum by different routes ended up to 3e-4 apart in validation V_NLS,
+#: and a 1e-12 change of the data moved a fit's end by as much, so a choice
+#: by the lower of two such costs followed the last bits of the data. With
+#: the rule at 3e-4 the same choices held under 1e-12 changes of the data
+#: (``docs/performance.md``).
 COST_TIE = 1e-3
 
 #: Validation V_NLS within this fraction of the best counts as equal when

@@ -25,7 +25,7 @@ from lpvid.data.schedule import between_points
 from lpvid.fit.cost import vnls_value as vnls
 from lpvid.fit.judge import dependence
 from lpvid.fit.results import FitResult
-from lpvid.fit.settings import FTOL, ROUTES
+from lpvid.fit.settings import ROUTES, START_FTOL
 from lpvid.initial.continuation import best_determined, continue_local
 from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.globalstart import (
@@ -185,7 +185,7 @@ def initial_candidates(
     local: LocalModels | None = None,
     diagnosis: Consistency | None = None,
     max_iter: int = 100,
-    ftol: float = FTOL,
+    ftol: float = START_FTOL,
     halving: bool = True,
     executor: Executor | None = None,
 ) -> list[Candidate]:
@@ -228,7 +228,7 @@ def initial_candidates(
         Most Levenberg-Marquardt steps per fit.
     ftol : float
         A fit ends when a step lowers V_NLS by less than ``ftol`` times it
-        (default :data:`lpvid.fit.settings.FTOL`: the rest is a slide along
+        (default :data:`lpvid.fit.settings.START_FTOL`: the rest is a slide along
         directions the data hardly see; see :func:`lpvid.fit_nls`).
     halving : bool
         Race the starts (:func:`lpvid.initial.race.race`): every start gets

@@ -17,7 +17,7 @@ from lpvid.data.schedule import model_range
 from lpvid.fit.cost import check_compatible
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.fit.results import FitResult
-from lpvid.fit.settings import FTOL
+from lpvid.fit.settings import START_FTOL
 from lpvid.initial.continuation import best_determined
 from lpvid.initial.local import identify_lti
 from lpvid.initial.localmodels import LocalModels
@@ -66,7 +66,7 @@ def global_start(
     point: int | None = None,
     stages: str = "all",
     max_iter: int = 100,
-    ftol: float = FTOL,
+    ftol: float = START_FTOL,
 ) -> LpvModel:
     """An LPV start from one good local model: constant first, then the basis groups.
 
@@ -103,7 +103,7 @@ def global_start(
         Most Levenberg-Marquardt steps per stage.
     ftol : float
         A stage ends when a step lowers V_NLS by less than ``ftol`` times it
-        (default :data:`lpvid.fit.settings.FTOL`; see :func:`lpvid.fit_nls`).
+        (default :data:`lpvid.fit.settings.START_FTOL`; see :func:`lpvid.fit_nls`).
 
     Returns
     -------
@@ -155,7 +155,7 @@ def constant_start(
     local: LocalModels | None = None,
     point: int | None = None,
     max_iter: int = 100,
-    ftol: float = FTOL,
+    ftol: float = START_FTOL,
 ) -> ConstantStart:
     """Steps 1 and 2 of :func:`global_start`: the constant model that best fits every point.
 
@@ -207,7 +207,7 @@ def group_stages(const: ConstantStart, fixed: Any, stages: str) -> list[Stage]:
 
 
 def global_runner(
-    const: ConstantStart, fixed: Any, stages: str, max_iter: int = 100, ftol: float = FTOL
+    const: ConstantStart, fixed: Any, stages: str, max_iter: int = 100, ftol: float = START_FTOL
 ) -> Runner:
     """A :class:`~lpvid.initial.race.Runner` that frees the groups of a constant start."""
     stage_list = group_stages(const, fixed, stages)
@@ -237,7 +237,7 @@ def free_groups(
     stages: str,
     *,
     max_iter: int = 100,
-    ftol: float = FTOL,
+    ftol: float = START_FTOL,
 ) -> tuple[LpvModel, FitResult, LpvModel]:
     """Step 3 of :func:`global_start`: free the groups of a constant start.
 

@@ -29,7 +29,7 @@ from lpvid.fit.cost import vnls_value as vnls
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.fit.judge import VALIDATION_TIE, by_simplicity, dependence, tied
 from lpvid.fit.results import FitResult
-from lpvid.fit.settings import FTOL
+from lpvid.fit.settings import START_FTOL
 from lpvid.model.frozen import frozen_stable
 from lpvid.model.lpv import LpvModel
 
@@ -97,7 +97,7 @@ class Runner:
         Most steps per stage.
     ftol : float
         A stage ends when a step lowers V_NLS by less than ``ftol`` times
-        it (:data:`lpvid.fit.settings.FTOL`; see :func:`lpvid.fit_nls`).
+        it (:data:`lpvid.fit.settings.START_FTOL`; see :func:`lpvid.fit_nls`).
     start : LpvModel or None
         The model the last stage started from (known once it starts).
     fit : FitResult or None
@@ -116,7 +116,7 @@ class Runner:
     model: LpvModel
     stages: list[Stage]
     max_iter: int = 100
-    ftol: float = FTOL
+    ftol: float = START_FTOL
     note: str = ""
     start: LpvModel | None = None
     fit: FitResult | None = None

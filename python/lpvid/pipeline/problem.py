@@ -212,11 +212,13 @@ def problem_of(
 
     ``settings`` (default ``L21Settings(max_outer=10)``, the default of
     :class:`lpvid.fit.settings.PathSettings`) are those of the path's l2,1
-    fits, and their ``ftol`` that of the starts' fits too, as ever.
+    fits. The starts' fits end by their own rule
+    (:data:`lpvid.fit.settings.START_FTOL`; a :class:`Problem` with
+    :class:`lpvid.fit.settings.StartSettings` sets another).
     """
     l21 = L21Settings.of(PATH_L21 if settings is None else settings)
     gs = DEFAULT_GAMMAS if gammas is None else gammas
     path = PathSettings(gammas=gs, tolerance=tolerance, l21=l21)
-    starts = StartSettings(routes=routes, forms=forms, ftol=l21.ftol)
+    starts = StartSettings(routes=routes, forms=forms)
     chosen = IdentifySettings(path=path, starts=starts, stable=stable, refit=refit)
     return Problem(data, order, basis, validation, fixed, time_data, settings=chosen)

@@ -198,7 +198,10 @@ def identify(
         Relative slack on the best validation V_NLS for the choice.
     settings : L21Settings, optional
         Settings of the l2,1 fits on the path; default
-        ``L21Settings(max_outer=10)``.
+        ``L21Settings(max_outer=10)``. The starts' fits end by their own
+        rule (:data:`lpvid.fit.settings.START_FTOL`; pass a
+        :class:`lpvid.Problem` with :class:`lpvid.fit.settings.StartSettings`
+        to change it).
     progress : callable, optional
         Called with a short message at every stage and every fit on the
         path (the same messages go to the ``lpvid`` logger at INFO).
