@@ -60,9 +60,10 @@ FTOL = 1e-4
 #: cone steps instead of 160 (4 groups instead of 5, a lower validation
 #: V_NLS); the other rungs and built-in sets chose as before or a model
 #: that validates better, and under 1e-12 changes of the data no choice
-#: moved that did not move with :data:`FTOL` too. At 1e-3 the starts that
-#: end within the race's first round stay in it, and a 1e-12 change of
-#: the 9 x 9 grid's data brought one in that led to another model.
+#: moved that did not move with :data:`FTOL` too (the starts' cost tie,
+#: :data:`lpvid.fit.judge.COST_TIE`, is ten times this rule). At 1e-3 the
+#: starts that end within the race's first round stay in it, and a 1e-12
+#: change of the 9 x 9 grid's data brought one in that led to another model.
 START_FTOL = 3e-4
 
 #: Default sweep of the (normalised) regularisation weight, largest first.
