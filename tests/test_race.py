@@ -162,3 +162,30 @@ def test_a_race_whose_runners_all_converge_in_a_round_drops_none(case):
     fresh = [_runner(r.name, r.model) for r in runners]
     assert race(fresh, data, validation, rounds=(100, 100)) == fresh
     assert all(r.done and r.dropped is None for r in fresh)
+
+
+def test_a_hopeless_start_leaves_without_a_step_and_says_why(case, monkeypatch):
+    """Far above the best start (HOPELESS lowered to make ``far`` hopeless): no step, its start kept.
+
+    The others race as they do with ``far`` in the race: the hopeless
+    count in the first round's halving, and no runner's fit changes.
+    """
+    from lpvid.initial import race as race_module
+
+    data, validation, runners = case
+    cost = {r.name: lpvid.vnls(r.model, data) for r in runners}
+    ratio = cost["far"] / min(cost.values())
+    assert ratio > 10
+    fresh = lambda: [_runner(r.name, r.model) for r in runners]  # noqa: E731
+    before = race(fresh(), data, validation, rounds=(2,))
+    monkeypatch.setattr(race_module, "HOPELESS", ratio / 2)
+    after = race(fresh(), data, validation, rounds=(2,))
+    far = next(r for r in after if r.name == "far")
+    assert far.dropped == 0 and far.steps == 0 and far.fit.n_iter == 0
+    assert far.fit.stop == "dropped" and not far.fit.converged
+    assert far.fit.model is far.model and far.fit.vnls == cost["far"]
+    assert f"{ratio / 2:g} times the best start's" in far.fit.message
+    for a, b in zip(before, after, strict=True):
+        if a.name != "far":
+            assert (a.dropped is None) == (b.dropped is None)
+            assert np.array_equal(a.model.theta, b.model.theta)

@@ -405,8 +405,8 @@ def test_the_race_stops_the_slide_and_keeps_the_choice_of_full_convergence(hard)
     assert pick.vnls <= want.vnls + 2 * np.sqrt(data.n_residuals)
 
 
-def test_hopeless_starts_leave_after_one_step_and_the_race_goes_on_as_before(hard, monkeypatch):
-    """Starts far above the best start take one step; the others race exactly as if they ran."""
+def test_hopeless_starts_leave_without_a_step_and_the_race_goes_on_as_before(hard, monkeypatch):
+    """Starts far above the best start take no step; the others race exactly as if they ran."""
     from lpvid.initial import race
 
     data, val = hard
@@ -418,9 +418,13 @@ def test_hopeless_starts_leave_after_one_step_and_the_race_goes_on_as_before(har
     full = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
     # The models the runners started from ("global:all" starts from the constant model).
     start = {c.name: lpvid.vnls(c.start, data) for c in full if c.name != "global:degree"}
-    one = [c for c in quick if len(c.fit.history) == 1]
-    assert one and all("after 1 steps" in c.note and not c.refined for c in one)
-    assert all(start[c.name] > limit * min(start.values()) for c in one)
+    none = [c for c in quick if not c.fit.history]
+    assert none and all("after 0 steps" in c.note and not c.refined for c in none)
+    assert all(start[c.name] > limit * min(start.values()) for c in none)
+    # Each is its start, as it was: V_NLS and model.
+    for c in none:
+        assert c.fit.stop == "dropped" and not c.fit.converged
+        assert c.vnls == start[c.name] and np.array_equal(c.model.theta, c.start.theta)
     for a, b in zip(quick, full, strict=True):
         assert a.name == b.name and a.refined == b.refined
         if a.refined:  # the same fit, to the last bit
