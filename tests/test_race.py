@@ -1,5 +1,6 @@
 """The race of the starts (lpvid.initial.race): ranking, rounds, merged fits."""
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -165,10 +166,12 @@ def test_a_race_whose_runners_all_converge_in_a_round_drops_none(case):
 
 
 def test_a_hopeless_start_leaves_without_a_step_and_says_why(case, monkeypatch):
-    """Far above the best start (HOPELESS lowered to make ``far`` hopeless): no step, its start kept.
+    """Far above the best start (HOPELESS lowered to make ``far`` so): no step, its start kept.
 
-    The others race as they do with ``far`` in the race: the hopeless
-    count in the first round's halving, and no runner's fit changes.
+    The others race as they do with ``far`` in the race (the hopeless
+    count in the first round's halving): no runner's fit changes. ``far``
+    is entered last, so that every runner before it is looked at too, and
+    a start whose V_NLS is not finite leaves the same way.
     """
     from lpvid.initial import race as race_module
 
@@ -176,16 +179,29 @@ def test_a_hopeless_start_leaves_without_a_step_and_says_why(case, monkeypatch):
     cost = {r.name: lpvid.vnls(r.model, data) for r in runners}
     ratio = cost["far"] / min(cost.values())
     assert ratio > 10
-    fresh = lambda: [_runner(r.name, r.model) for r in runners]  # noqa: E731
+    order = sorted(runners, key=lambda r: r.name == "far")  # far last
+
+    def fresh():
+        out = [_runner(r.name, r.model) for r in order]
+        broken = _runner("broken", order[0].model)
+        broken.fit = race_module._unfitted(broken.model, math.inf, data, "as given")
+        return [broken, *out]
+
     before = race(fresh(), data, validation, rounds=(2,))
     monkeypatch.setattr(race_module, "HOPELESS", ratio / 2)
-    after = race(fresh(), data, validation, rounds=(2,))
-    far = next(r for r in after if r.name == "far")
-    assert far.dropped == 0 and far.steps == 0 and far.fit.n_iter == 0
-    assert far.fit.stop == "dropped" and not far.fit.converged
-    assert far.fit.model is far.model and far.fit.vnls == cost["far"]
-    assert f"{ratio / 2:g} times the best start's" in far.fit.message
+    seen = []
+    after = race(fresh(), data, validation, rounds=(2,), step=seen.append)
+    far, broken = after[-1], after[0]
+    assert far.name == "far" and far.dropped == 0 and far.steps == 0 and far.fit.n_iter == 0
+    assert seen[:2] == [broken, far]  # the hopeless, reported as they leave
+    fit = far.fit
+    assert fit.stop == "dropped" and not fit.converged and not fit.interrupted
+    assert fit.model is far.model and fit.vnls == fit.objective == cost["far"]
+    assert fit.noise_floor == data.n_residuals and fit.n_rejected == 0
+    assert fit.timings.keys() == after[1].fit.timings.keys() and fit.timings["total_s"] == 0
+    assert f"{ratio / 2:g} times the best start's" in fit.message
+    assert broken.dropped == 0 and "not finite" in broken.fit.message
     for a, b in zip(before, after, strict=True):
-        if a.name != "far":
+        if a.name not in ("far", "broken"):
             assert (a.dropped is None) == (b.dropped is None)
             assert np.array_equal(a.model.theta, b.model.theta)
