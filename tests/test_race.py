@@ -195,12 +195,15 @@ def test_a_hopeless_start_leaves_without_a_step_and_says_why(case, monkeypatch):
     assert far.name == "far" and far.dropped == 0 and far.steps == 0 and far.fit.n_iter == 0
     assert seen[:2] == [broken, far]  # the hopeless, reported as they leave
     fit = far.fit
-    assert fit.stop == "dropped" and not fit.converged and not fit.interrupted
+    assert fit.stop == "dropped" and fit.converged is False and fit.interrupted is False
     assert fit.model is far.model and fit.vnls == fit.objective == cost["far"]
     assert fit.noise_floor == data.n_residuals and fit.n_rejected == 0
     assert fit.timings.keys() == after[1].fit.timings.keys() and fit.timings["total_s"] == 0
     assert f"{ratio / 2:g} times the best start's" in fit.message
     assert broken.dropped == 0 and "not finite" in broken.fit.message
+    # With no start of finite V_NLS there is nothing to be far above: none leaves so.
+    alone = race(fresh()[:1], data, validation, rounds=(2,))
+    assert alone[0].dropped is None and alone[0].steps > 0
     for a, b in zip(before, after, strict=True):
         if a.name not in ("far", "broken"):
             assert (a.dropped is None) == (b.dropped is None)
