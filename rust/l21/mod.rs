@@ -15,7 +15,7 @@ use crate::lm::{
     evaluate_trial, levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings,
 };
 use crate::objective::Objective;
-use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Lookahead, Pinned};
+use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Pinned, WarmSteps};
 use std::time::Instant;
 
 mod settings;
@@ -177,7 +177,7 @@ pub fn fit_l21(
     let mut stop = Stop::MaxIterations;
     let mut groups;
     let mut outer = 0;
-    let mut solver = Lookahead::new(settings.cone_tol);
+    let mut solver = WarmSteps::new(settings.cone_tol);
     // The kept-off directions, made orthonormal once in the metric of the
     // first step.
     let mu0 = Damping::new(settings.lambda0).mu;
@@ -230,8 +230,8 @@ pub fn fit_l21(
         // over was measured: fewer rejected steps, but other models on the
         // gantry path, one more group at gamma = 0.03).
         let mut damping = Damping::new(settings.lambda0);
-        // Doubtful: a reweighting's first step, or one after a rejection;
-        // only then is the step a rejection would ask for solved ahead.
+        // Doubtful: a reweighting's first step, or one after a rejection
+        // (judged by V_NLS alone, see `evaluate_trial`).
         let mut doubtful = true;
         if free.is_empty() {
             stop = Stop::NothingFree;
@@ -251,10 +251,7 @@ pub fn fit_l21(
             };
             let objective = gn.vnls / m_res + cone.penalty(None);
             let lambda = damping.lambda();
-            let mut rejected = damping;
-            rejected.update(-1.0);
-            let next_mu = (doubtful && !rejected.exhausted()).then_some(rejected.mu);
-            let solved = solver.solve(&cone, damping.mu, next_mu)?;
+            let solved = solver.solve(&cone, damping.mu)?;
             let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
             let mut new_theta = None;
             let mut new_objective = objective;

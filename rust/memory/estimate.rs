@@ -263,16 +263,15 @@ impl FitSizes {
                 let groups = self.shape.groups().len();
                 let (n, m) = (grouped + groups, grouped + 2 * groups);
                 let nnz = grouped * (grouped + 1) / 2 + grouped + groups;
-                // Two programs at once when the pool has two threads or more
-                // (`socp::Lookahead`); each keeps its solver between steps.
-                let slots = if self.threads > 1 { 2 } else { 1 };
+                // One program at a time (`socp::WarmSteps`), its solver
+                // kept between steps.
                 let curvature = if pinned { square(nf) } else { 0 };
                 // While a solver is set up: Clarabel's own, the copy handed
                 // to it and the step's arrays.
                 let set_up = clarabel(n, m, nnz) - clarabel_kept(n, m, nnz);
                 (
-                    point + slots * clarabel_kept(n, m, nnz),
-                    slots * (set_up + cone_step(nnz, grouped, others)) + curvature,
+                    point + clarabel_kept(n, m, nnz),
+                    set_up + cone_step(nnz, grouped, others) + curvature,
                 )
             }
         };

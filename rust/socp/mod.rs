@@ -41,18 +41,18 @@
 //! program, 1088 variables per solve where the answer moved 576, and a
 //! cone step took 3.5 times as long).
 
-mod ahead;
 mod group;
 mod newton;
 mod packed;
 mod pinned;
 mod program;
 mod round;
+mod warm;
 
-pub use ahead::Lookahead;
 pub use group::ConeGroup;
 pub use pinned::{Pinned, PinnedBasis};
 pub use program::{ConeSolver, DEFAULT_CONE_TOL};
+pub use warm::WarmSteps;
 
 use crate::error::Result;
 use crate::objective::GaussNewton;
@@ -156,6 +156,19 @@ impl ConeProblem<'_> {
     /// on the active set). A failed solve is a step without a solution;
     /// the error is [`crate::Error::OutOfMemory`] only.
     pub fn solve(&self, mu: f64, cache: &mut ConeSolver) -> Result<ConeStep> {
+        self.solve_from(mu, cache, None)
+    }
+
+    /// As [`ConeProblem::solve`], Newton's method started from the step
+    /// `warm` (over the free parameters, unscaled; see [`WarmSteps`])
+    /// instead of zero. The minimiser is the same up to the tolerance of
+    /// the solve; Clarabel, when it takes over, starts from its own point.
+    pub fn solve_from(
+        &self,
+        mu: f64,
+        cache: &mut ConeSolver,
+        warm: Option<&[f64]>,
+    ) -> Result<ConeStep> {
         let nf = self.gn.dim();
         let active: Vec<usize> = (0..self.groups.len())
             .filter(|&k| self.groups[k].is_active())
@@ -197,9 +210,10 @@ impl ConeProblem<'_> {
         let mut iterations = 0;
         let mut solves = 0;
         let mut by_newton = self.newton;
-        // The last round's step (scaled) when the check refuted it: Newton's
-        // method goes on from there.
-        let mut start: Option<Vec<f64>> = None;
+        // Where Newton's method starts (scaled): `warm`, then the last
+        // round's step when the check refuted it.
+        let mut start: Option<Vec<f64>> =
+            warm.map(|d| d.iter().zip(&scale).map(|(d, s)| d / s).collect());
         for round in 0..MAX_ROUNDS {
             let curv = curvature.as_ref();
             let method = if by_newton && round < MAX_ROUNDS - 2 {

@@ -362,3 +362,6 @@ fn a_group_with_a_fixed_nonzero_entry_is_never_snapped() {
 
 #[path = "tests_several.rs"]
 mod several;
+
+#[path = "tests_warm.rs"]
+mod warm;

@@ -7,7 +7,7 @@ use super::*;
 // ----------------------------------------------------- several groups
 
 /// Groups (0, 1), (2, 3, 4), (5) and two ungrouped parameters (6, 7).
-fn several(seed: u64, gamma: f64, theta_scale: f64) -> Case {
+pub(super) fn several(seed: u64, gamma: f64, theta_scale: f64) -> Case {
     let mut rng = Lcg(seed);
     let p = spd(8, 0.3, &mut rng);
     let q = DVector::from_fn(8, |_, _| rng.next_f64());

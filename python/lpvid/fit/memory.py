@@ -34,11 +34,10 @@ terms of the estimate; :func:`fit_memory` gives the whole of it):
   and ``16 N F l r`` for the residuals;
 - Levenberg-Marquardt: that evaluation plus ``8 P^2`` (the matrix of the
   current point) and, during a step, ``8 P^2`` (its Cholesky factor);
-- the l2,1 fit: ``8 P^2`` plus two cone programs at once (two threads),
-  each about ``144 K^2 / 2`` bytes for ``K = Nb/(Nb + 1) P`` grouped
-  parameters (Clarabel's copy of the dense block, its KKT matrix and
-  factor, and the program as built), kept between steps, plus the
-  evaluation;
+- the l2,1 fit: ``8 P^2`` plus one cone program, about ``144 K^2 / 2``
+  bytes for ``K = Nb/(Nb + 1) P`` grouped parameters (Clarabel's copy of
+  the dense block, its KKT matrix and factor, and the program as built),
+  kept between steps, plus the evaluation;
 - time records (``T`` samples, ``S`` = free parameters of A and B plus
   ``n``): ``8 S^2 (t + 1)`` (the threads' sums and the Gram matrix of a
   record), ``16 (2048 / l) l S`` (a block of Jacobian rows) and, for a
@@ -325,9 +324,10 @@ def pipeline_memory(
     models (the subspace step: 63 MB of numpy arrays at n = 24 3x3 with
     1000 lines), SMILE and the results kept along the way are smaller.
     Against ``benches/bench_scale.py`` (identify's own growth of the peak
-    resident memory, 2026-11-26): gantry 15 MB against this 102 MB, n = 10
-    2x2 55 against 113 MB, n = 16 2x2 394-402 against 529 MB, n = 24 3x3
-    1128-1157 against 1469 MB.
+    resident memory, 2026-11-27, one cone program at a time): gantry 8 MB
+    against this 96 MB, n = 10 2x2 39 against 103 MB, n = 16 2x2 185
+    against 394 MB, n = 24 3x3 661 against 1155 MB, n = 32 4x4 1547
+    against 5333 MB.
     """
     l, r, nb = data.n_outputs, data.n_inputs, len(basis)
     sizes = _sizes(data, time_data, data.Ts is None)

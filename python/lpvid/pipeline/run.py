@@ -269,16 +269,16 @@ def identify(
         (n + r)`` parameters, ``L = (n + l)(n + r)`` per LTI model and
         ``F_t = 4 floor(128 / (l r))`` lines per block, about ``8 P^2`` bytes
         for ``J^T J`` and as much again during a Levenberg-Marquardt step or
-        ``144 K^2`` (``K = Nb P / (Nb + 1)``: two cone programs at once) during
-        an l2,1 step, plus one evaluation: ``4 L^2 N ceil(F / F_t)`` for the
+        ``72 K^2`` (``K = Nb P / (Nb + 1)``: one cone program) during an
+        l2,1 step, plus one evaluation: ``4 L^2 N ceil(F / F_t)`` for the
         Gram pieces of the blocks of lines or ``8 L^2 (N + (Nb + 1)(Nb + 2)
         / 2) + 8 P^2`` for the points' Gram matrices, their sums and
         ``J^T J``; with ``refit``, ``64 P^2`` for the covariance; then half
         as much again and 64 MB for what the allocator holds back and the
         first run's modules (:func:`lpvid.fit.memory.resident`). At n = 16 2x2
-        (N = 9, F = 500) that is 529 MB, n = 24 3x3 (N = 9, F = 1000)
-        1.47 GB; ``benches/bench_scale.py`` measured 409-465 MB and 1.29 GB
-        of growth (:func:`lpvid.fit.memory.pipeline_memory`).
+        (N = 9, F = 500) that is 394 MB, n = 24 3x3 (N = 9, F = 1000)
+        1155 MB; ``benches/bench_scale.py`` measured 185 and 661 MB of
+        growth (:func:`lpvid.fit.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
     held = dict(
