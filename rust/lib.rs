@@ -20,6 +20,7 @@ pub mod lm;
 pub mod lti;
 pub mod memory;
 pub mod objective;
+pub mod point_factors;
 pub mod point_sums;
 pub mod problem;
 pub mod response;

@@ -12,6 +12,7 @@ use crate::fit::{
 use crate::layout::FreeSet;
 use crate::memory::try_par_columns;
 use crate::objective::{GaussNewton, Objective};
+use crate::point_factors::FactoredSystem;
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -104,6 +105,35 @@ pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64
     cholesky_solve(l.as_ref(), d.as_mut());
     let d: Vec<f64> = (0..m).map(|i| d[(i, 0)]).collect();
     Ok(d.iter().all(|v| v.is_finite()).then_some(d))
+}
+
+/// The damped system of one point of a fit, whatever the damping: solved
+/// through every point's factor when the Gauss-Newton pieces carry them
+/// ([`crate::point_factors`]; `K` formed once, a rejected step refactors
+/// `K + mu I` alone), else by the dense [`lm_step`].
+pub enum LmSystem {
+    /// `J^T J + mu D` factored anew for every `mu`.
+    Dense,
+    /// `K + mu I` of every point's factor.
+    Factored(FactoredSystem),
+}
+
+impl LmSystem {
+    /// The system of `gn` with the Marquardt diagonal `diag`.
+    pub fn new(gn: &GaussNewton, diag: &[f64]) -> Result<Self> {
+        Ok(match &gn.factors {
+            Some(f) => LmSystem::Factored(FactoredSystem::new(f, diag)?),
+            None => LmSystem::Dense,
+        })
+    }
+
+    /// The step of `(J^T J + mu D) d = -J^T r`, as [`lm_step`].
+    pub fn step(&self, gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64>>> {
+        match (self, &gn.factors) {
+            (LmSystem::Factored(system), Some(f)) => system.step(f, diag, mu),
+            _ => lm_step(gn, diag, mu),
+        }
+    }
 }
 
 /// Predicted decrease of V_NLS for step `d`: `-(g^T d + d^T J^T J d)`.
@@ -220,6 +250,7 @@ pub fn levenberg_marquardt(
         return Ok(finish(theta, v, history, Stop::NothingFree));
     }
     let mut diag = marquardt_diagonal(&gn);
+    let mut system = LmSystem::new(&gn, &diag)?;
     let mut damping = Damping::new(settings.lambda0);
     let mut stop = Stop::MaxIterations;
     let mut doubtful = true;
@@ -230,7 +261,7 @@ pub fn levenberg_marquardt(
         }
         let t0 = Instant::now();
         let lambda = damping.lambda();
-        let step = lm_step(&gn, &diag, damping.mu)?;
+        let step = system.step(&gn, &diag, damping.mu)?;
         let (mut accepted, mut rho, mut step_norm) = (false, f64::NAN, f64::NAN);
         let mut status = "not positive definite";
         let mut new_theta = None;
@@ -262,6 +293,7 @@ pub fn levenberg_marquardt(
             gn = cand;
             theta = trial;
             diag = marquardt_diagonal(&gn);
+            system = LmSystem::new(&gn, &diag)?;
         }
         let it = Iteration {
             kind: StepKind::Lm,

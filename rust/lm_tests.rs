@@ -51,6 +51,7 @@ fn gauss_newton(gram: Vec<f64>) -> GaussNewton {
         vnls: 1.0,
         gradient: vec![0.0; m],
         gram,
+        factors: None,
     }
 }
 
@@ -85,6 +86,7 @@ fn predicted_decrease_is_the_gauss_newton_model_of_the_step() {
         vnls: 10.0,
         gradient: vec![1.0, -2.0, 0.5],
         gram: gram.clone(),
+        factors: None,
     };
     let d = [0.1, 0.3, -0.2];
     let gd: f64 = gn.gradient.iter().zip(&d).map(|(g, x)| g * x).sum();
@@ -141,6 +143,7 @@ impl Objective for Rosenbrock {
             vnls: r.iter().map(|v| v * v).sum(),
             gradient,
             gram,
+            factors: None,
         })
     }
     fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {

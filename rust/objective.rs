@@ -6,6 +6,7 @@
 
 use crate::error::Result;
 use crate::layout::{FreeSet, Shape};
+use crate::point_factors::PointFactors;
 
 /// V_NLS with its gradient and Gauss-Newton matrix at one `theta`,
 /// restricted to the free parameters.
@@ -17,6 +18,10 @@ pub struct GaussNewton {
     pub gradient: Vec<f64>,
     /// `J^T J` over the free parameters, symmetric, column-major.
     pub gram: Vec<f64>,
+    /// `J^T J` and the gradient as every point's factor, where the shape
+    /// makes the Levenberg-Marquardt step cheaper that way
+    /// ([`crate::point_factors`]); None elsewhere.
+    pub factors: Option<PointFactors>,
 }
 
 impl GaussNewton {

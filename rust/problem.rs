@@ -14,6 +14,7 @@ use crate::layout::{FreeSet, Matrix, Shape};
 use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use crate::memory::{try_grow, try_par_columns, try_vec};
 use crate::objective::{GaussNewton, Objective};
+use crate::point_factors::{worth_it, PointFactors};
 use crate::point_sums::PointSums;
 use crate::response::with_constant;
 use num_complex::Complex64 as C64;
@@ -168,11 +169,31 @@ impl Problem {
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
         let (gradient, gram) = self.assemble(&grams, &jtr, free)?;
+        let factors = if self.factored(free) {
+            let psi = (0..self.data.n_points())
+                .map(|q| self.psi(q).to_vec())
+                .collect();
+            let map = free.indices().iter().map(|&u| self.param_map[u]).collect();
+            Some(PointFactors::new(&grams, &jtr, psi, map, lti)?)
+        } else {
+            None
+        };
         Ok(GaussNewton {
             vnls,
             gradient,
             gram,
+            factors,
         })
+    }
+
+    /// Whether the Levenberg-Marquardt steps over `free` go through every
+    /// point's factor ([`crate::point_factors::worth_it`]; the rank of a
+    /// point's Gram matrix is at most `n (l + r) + l r`).
+    fn factored(&self, free: &FreeSet) -> bool {
+        let s = &self.shape;
+        let lti = s.lti_len();
+        let bound = (s.n * (s.l + s.r) + s.l * s.r).min(lti);
+        worth_it(lti, bound, self.data.n_points(), free.len())
     }
 
     /// Hessenberg forms of the frozen models at every point.

@@ -68,6 +68,11 @@ impl Objective for Sum<'_> {
                 .iter_mut()
                 .zip(&gn.gram)
                 .for_each(|(a, b)| *a += b);
+            // The points of every part, when each part has them.
+            total.factors = match (total.factors.take(), gn.factors) {
+                (Some(a), Some(b)) => a.join(b),
+                _ => None,
+            };
         }
         Ok(total)
     }

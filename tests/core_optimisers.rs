@@ -256,6 +256,7 @@ fn cone_setup(coupling: f64, mu: f64, seed: u64) -> ConeCase {
         vnls: 1.0,
         gradient: (&q * CASE_M).as_slice().to_vec(),
         gram: gram.as_slice().to_vec(),
+        factors: None,
     };
     let theta: Vec<f64> = (0..nf).map(|_| rng.next_f64()).collect();
     let groups: Vec<ConeGroup> = CASE_GROUPS

@@ -95,6 +95,7 @@ impl Objective for Linear {
             vnls: dot(&r, &r),
             gradient: cols.iter().map(|c| 2.0 * dot(c, &r)).collect(),
             gram,
+            factors: None,
         })
     }
     fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {

@@ -371,6 +371,7 @@ impl Objective for Wall {
             vnls: self.inner.cost(theta)?,
             gradient: vec![0.0; free.len()],
             gram: vec![0.0; free.len() * free.len()],
+            factors: None,
         })
     }
     fn response(&self, theta: &[f64]) -> Result<Vec<f64>> {

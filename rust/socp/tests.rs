@@ -49,6 +49,7 @@ fn case(
             vnls: 1.0,
             gradient: (&q * m).as_slice().to_vec(),
             gram: gram.as_slice().to_vec(),
+            factors: None,
         },
         diag,
         theta,
@@ -182,6 +183,7 @@ fn model_gradient_is_g_over_m_plus_the_damped_quadratic_times_d() {
         vnls: 1.0,
         gradient: vec![3.0, -6.0],
         gram: vec![2.0, 1.0, 1.0, 3.0],
+        factors: None,
     };
     let diag = [5.0, 7.0];
     let theta = [0.0, 0.0];

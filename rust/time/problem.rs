@@ -352,6 +352,7 @@ impl TimeProblem {
                 vnls,
                 gradient,
                 gram,
+                factors: None,
             },
             times,
         ))

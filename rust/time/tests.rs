@@ -70,6 +70,7 @@ fn gauss_newton_pieces_agree_with_the_per_row_derivative() {
             vnls,
             gradient,
             gram,
+            ..
         } = problem.gauss_newton_timed(&theta, &free).unwrap().0;
         problem.reference = true;
         let old = problem.gauss_newton_timed(&theta, &free).unwrap().0;

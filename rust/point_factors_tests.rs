@@ -1,0 +1,195 @@
+//! Unit tests of the factored Levenberg-Marquardt step (`super`).
+
+use super::*;
+use crate::lm::lm_step;
+use crate::objective::GaussNewton;
+
+/// A reproducible stream of numbers in [-1, 1).
+struct Stream(u64);
+
+impl Stream {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+/// `G G^T` (`lti x lti`, column-major) for `G` of `rank` random columns,
+/// row `p` scaled by `10^(scale p)`, and a vector in its range.
+fn low_rank(s: &mut Stream, lti: usize, rank: usize, scale: f64) -> (Vec<f64>, Vec<f64>) {
+    let rows: Vec<f64> = (0..lti)
+        .map(|p| 10f64.powf(scale * p as f64 / lti as f64))
+        .collect();
+    let g: Vec<f64> = (0..lti * rank).map(|k| s.next() * rows[k % lti]).collect();
+    let mut h = vec![0.0; lti * lti];
+    for i in 0..lti {
+        for j in 0..lti {
+            h[i + j * lti] = (0..rank).map(|k| g[i + k * lti] * g[j + k * lti]).sum();
+        }
+    }
+    let coef: Vec<f64> = (0..rank).map(|_| s.next()).collect();
+    let jtr = (0..lti)
+        .map(|i| (0..rank).map(|k| g[i + k * lti] * coef[k]).sum())
+        .collect();
+    (h, jtr)
+}
+
+#[test]
+fn the_pivoted_factor_finds_the_rank_of_a_badly_scaled_matrix_and_rebuilds_it() {
+    let mut s = Stream(7);
+    for (lti, rank, scale) in [(40, 12, 0.0), (56, 20, 6.0), (30, 30, 3.0), (25, 1, 8.0)] {
+        let (h, _) = low_rank(&mut s, lti, rank, scale);
+        let (l, pivots, found) = pivoted_factor(&h, lti).unwrap();
+        assert_eq!(found, rank, "lti {lti} rank {rank}");
+        assert_eq!(l.len(), lti * found);
+        let mut sorted = pivots.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), found, "pivots repeat");
+        for i in 0..lti {
+            for j in 0..lti {
+                let llt: f64 = (0..found).map(|k| l[i + k * lti] * l[j + k * lti]).sum();
+                let size = (h[i + i * lti] * h[j + j * lti]).sqrt();
+                assert!((llt - h[i + j * lti]).abs() <= 1e-10 * size, "({i}, {j})");
+            }
+        }
+        // Lower triangular in the pivots' order.
+        for (k, &p) in pivots.iter().enumerate() {
+            for m in k + 1..found {
+                assert_eq!(l[p + m * lti], 0.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_point_the_model_does_not_see_has_no_factor() {
+    let lti = 6;
+    let (l, pivots, rank) = pivoted_factor(&vec![0.0; lti * lti], lti).unwrap();
+    assert_eq!((l.len(), pivots.len(), rank), (0, 0, 0));
+}
+
+/// The Gauss-Newton pieces of `points` random low-rank points over the
+/// free parameters `free` of `n_coef` basis coefficients: dense, and with
+/// the factors.
+fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize]) -> GaussNewton {
+    let mut s = Stream(11);
+    let (mut grams, mut jtr, mut psi) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..points {
+        let (h, g) = low_rank(&mut s, lti, rank, 2.0);
+        grams.push(h);
+        jtr.push(g);
+        let mut row = vec![1.0];
+        row.extend((1..n_coef).map(|_| s.next()));
+        psi.push(row);
+    }
+    let map: Vec<(usize, usize)> = free.iter().map(|&u| (u / lti, u % lti)).collect();
+    let nf = map.len();
+    let mut gram = vec![0.0; nf * nf];
+    for (a, &(i, p)) in map.iter().enumerate() {
+        for (b, &(j, t)) in map.iter().enumerate() {
+            gram[a + b * nf] = (0..points)
+                .map(|q| psi[q][i] * psi[q][j] * grams[q][p + t * lti])
+                .sum();
+        }
+    }
+    let gradient = map
+        .iter()
+        .map(|&(i, p)| 2.0 * (0..points).map(|q| psi[q][i] * jtr[q][p]).sum::<f64>())
+        .collect();
+    let factors = PointFactors::new(&grams, &jtr, psi, map, lti).unwrap();
+    GaussNewton {
+        vnls: 1.0,
+        gradient,
+        gram,
+        factors: Some(factors),
+    }
+}
+
+fn relative(a: &[f64], b: &[f64]) -> f64 {
+    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let size: f64 = b.iter().map(|y| y * y).sum();
+    (diff / size).sqrt()
+}
+
+#[test]
+fn the_factored_step_is_the_dense_step_with_and_without_fixed_parameters() {
+    let (points, lti, rank, n_coef) = (5, 30, 7, 3);
+    let every: Vec<usize> = (0..n_coef * lti).collect();
+    // Some parameters fixed: whole rows of one coefficient, scattered others.
+    let some: Vec<usize> = every
+        .iter()
+        .copied()
+        .filter(|u| u % 7 != 3 && *u / lti != 1)
+        .collect();
+    for free in [every, some] {
+        let gn = pieces(points, lti, rank, n_coef, &free);
+        let factors = gn.factors.as_ref().unwrap();
+        assert_eq!(factors.ranks(), vec![rank; points]);
+        let nf = free.len();
+        let diag: Vec<f64> = (0..nf).map(|i| gn.gram[i + i * nf]).collect();
+        let system = FactoredSystem::new(factors, &diag).unwrap();
+        for mu in [1e-4, 1e-2, 1.0, 100.0] {
+            let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
+            let factored = system.step(factors, &diag, mu).unwrap().unwrap();
+            let err = relative(&factored, &dense);
+            assert!(err < 1e-8, "nf {nf} mu {mu}: {err:e}");
+        }
+    }
+}
+
+#[test]
+fn joined_factors_step_as_the_sum_of_their_points() {
+    let (lti, n_coef) = (20, 2);
+    let free: Vec<usize> = (0..n_coef * lti).collect();
+    let a = pieces(3, lti, 5, n_coef, &free);
+    let b = pieces(4, lti, 5, n_coef, &free);
+    let nf = free.len();
+    let gram: Vec<f64> = a.gram.iter().zip(&b.gram).map(|(x, y)| x + y).collect();
+    let gradient: Vec<f64> = a
+        .gradient
+        .iter()
+        .zip(&b.gradient)
+        .map(|(x, y)| x + y)
+        .collect();
+    let joined = a
+        .factors
+        .clone()
+        .unwrap()
+        .join(b.factors.clone().unwrap())
+        .unwrap();
+    assert_eq!(joined.rank(), 35);
+    let sum = GaussNewton {
+        vnls: 2.0,
+        gradient,
+        gram,
+        factors: Some(joined),
+    };
+    let diag: Vec<f64> = (0..nf).map(|i| sum.gram[i + i * nf]).collect();
+    let factors = sum.factors.as_ref().unwrap();
+    let system = FactoredSystem::new(factors, &diag).unwrap();
+    let dense = lm_step(&sum, &diag, 1e-2).unwrap().unwrap();
+    let factored = system.step(factors, &diag, 1e-2).unwrap().unwrap();
+    assert!(relative(&factored, &dense) < 1e-8);
+    // Other free parameters: no join.
+    let fewer: Vec<usize> = (1..n_coef * lti).collect();
+    let c = pieces(2, lti, 5, n_coef, &fewer);
+    assert!(a.factors.unwrap().join(c.factors.unwrap()).is_none());
+}
+
+#[test]
+fn the_route_is_chosen_by_the_shape_alone() {
+    // n = 16 2x2 at 9 points: 324 frozen parameters of rank at most 68.
+    assert!(worth_it(324, 68, 9, 1620));
+    // n = 32 4x4; its refit's 3600 free parameters would save less than half.
+    assert!(worth_it(1296, 272, 9, 6480));
+    assert!(!worth_it(1296, 272, 9, 3600));
+    // The gantry (280 free) and the 9 x 9 grid (600): dense.
+    assert!(!worth_it(56, 20, 5, 280));
+    assert!(!worth_it(100, 36, 81, 600));
+    // Many points of nearly full rank: dense however many parameters.
+    assert!(!worth_it(324, 300, 9, 1620));
+}

@@ -1,0 +1,149 @@
+//! The Levenberg-Marquardt step through every point's factor
+//! (`point_factors.rs`) on a real problem of the size where it is taken:
+//! the same step as the dense factorisation of `J^T J + mu D`, the rank
+//! the similarity transformations leave, and the same fit on any number
+//! of threads.
+
+use lpvid::lm::{lm_step, marquardt_diagonal, LmSystem};
+use lpvid::testing::{on_threads, Lcg};
+use lpvid::{
+    frequency_response, levenberg_marquardt, FreeSet, FrfData, LmSettings, Matrix, Problem, Shape,
+    Silent,
+};
+use num_complex::Complex64 as C64;
+
+const N: usize = 16;
+const POINTS: usize = 9;
+const LINES: usize = 12;
+
+fn points() -> Vec<f64> {
+    (0..POINTS)
+        .map(|k| -1.0 + 2.0 * k as f64 / (POINTS - 1) as f64)
+        .collect()
+}
+
+/// `p, p^2, p^3` at every point.
+fn basis() -> Vec<f64> {
+    points()
+        .iter()
+        .flat_map(|&p| [p, p * p, p * p * p])
+        .collect()
+}
+
+/// A stable discrete-time model of order 16 with 2 outputs and 2 inputs,
+/// every coefficient nonzero, and its frequency lines.
+fn model() -> (Shape, Vec<f64>, Vec<C64>) {
+    let shape = Shape::new(N, 2, 2, 3).unwrap();
+    let mut rng = Lcg(3);
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
+    // A(0): eight damped rotations; A(1..3) small beside them.
+    let mut a0 = vec![0.0; N * N];
+    for k in 0..N / 2 {
+        let (r, w) = (0.6 + 0.03 * k as f64, 0.2 + 0.35 * k as f64);
+        let (i, j) = (2 * k, 2 * k + 1);
+        a0[i + i * N] = r * w.cos();
+        a0[j + j * N] = r * w.cos();
+        a0[i + j * N] = r * w.sin();
+        a0[j + i * N] = -r * w.sin();
+    }
+    theta[shape.block(Matrix::A, 0)].copy_from_slice(&a0);
+    for i in 1..4 {
+        for v in &mut theta[shape.block(Matrix::A, i)] {
+            *v *= 0.02;
+        }
+    }
+    let z = (0..LINES)
+        .map(|k| C64::from_polar(1.0, 0.05 + 3.0 * k as f64 / (LINES - 1) as f64))
+        .collect();
+    (shape, theta, z)
+}
+
+/// The model's data with noise, and a start near the model.
+fn problem() -> (Problem, Vec<f64>) {
+    let (shape, theta, z) = model();
+    let mut g = frequency_response(&shape, &theta, &basis(), POINTS, &z).unwrap();
+    let mut rng = Lcg(5);
+    for v in g.iter_mut() {
+        *v += 0.01 * C64::new(rng.next_f64(), rng.next_f64());
+    }
+    let sigma = vec![0.01; g.len()];
+    let data = FrfData::new(POINTS, 2, 2, z, g, &sigma).unwrap();
+    let start = theta
+        .iter()
+        .map(|t| t * (1.0 + 0.05 * rng.next_f64()))
+        .collect();
+    (Problem::new(shape, data, &basis()).unwrap(), start)
+}
+
+fn relative(a: &[f64], b: &[f64]) -> f64 {
+    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let size: f64 = b.iter().map(|y| y * y).sum();
+    (diff / size).sqrt()
+}
+
+#[test]
+fn a_big_problems_step_goes_through_its_points_factors_and_is_the_dense_step() {
+    let (p, start) = problem();
+    let all = FreeSet::all(start.len());
+    // D fixed, and a scattered few of the other parameters.
+    let mask: Vec<bool> = (0..start.len())
+        .map(|u| u % 11 != 4 && !p.shape().block(Matrix::D, 0).contains(&u))
+        .collect();
+    for free in [all, FreeSet::from_mask(&mask)] {
+        let gn = p.gauss_newton(&start, &free).unwrap();
+        let factors = gn.factors.as_ref().expect("1296 parameters: factored");
+        // 68 = n (l + r) + l r: what the similarity transformations leave.
+        assert_eq!(factors.ranks(), vec![68; POINTS]);
+        let diag = marquardt_diagonal(&gn);
+        let system = LmSystem::new(&gn, &diag).unwrap();
+        assert!(matches!(system, LmSystem::Factored(_)));
+        for mu in [1e-4, 1e-2, 1.0] {
+            let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
+            let factored = system.step(&gn, &diag, mu).unwrap().unwrap();
+            let err = relative(&factored, &dense);
+            assert!(err < 1e-7, "{} free, mu {mu}: {err:e}", free.len());
+        }
+    }
+}
+
+#[test]
+fn a_small_problem_keeps_the_dense_step() {
+    let (p, start) = problem();
+    // The constant coefficients alone: 324 free parameters.
+    let mask: Vec<bool> = (0..start.len())
+        .map(|u| {
+            Matrix::ALL
+                .iter()
+                .any(|&x| p.shape().block(x, 0).contains(&u))
+        })
+        .collect();
+    let gn = p.gauss_newton(&start, &FreeSet::from_mask(&mask)).unwrap();
+    assert_eq!(gn.dim(), 324);
+    assert!(gn.factors.is_none());
+}
+
+#[test]
+fn a_factored_fit_takes_the_same_steps_on_one_thread_and_on_two() {
+    let (p, start) = problem();
+    let free = FreeSet::all(start.len());
+    let settings = LmSettings {
+        max_iter: 6,
+        lambda0: 1e-3,
+        ..LmSettings::default()
+    };
+    let run = |threads| {
+        on_threads(threads, || {
+            levenberg_marquardt(&p, &start, &free, &settings, &mut Silent).unwrap()
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(one.vnls < p.cost(&start).unwrap());
+    assert_eq!(one.history.len(), two.history.len());
+    for (a, b) in one.history.iter().zip(&two.history) {
+        assert_eq!(
+            (a.accepted, a.vnls.to_bits()),
+            (b.accepted, b.vnls.to_bits())
+        );
+    }
+    assert_eq!(one.theta, two.theta);
+}
