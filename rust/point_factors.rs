@@ -50,11 +50,21 @@ pub fn worth_it(lti: usize, bound: usize, n_points: usize, n_free: usize) -> boo
     if n_free < FEWEST_FREE {
         return false;
     }
-    let (lti, bound, points, nf) = (lti as f64, bound as f64, n_points as f64, n_free as f64);
+    let factors = (n_points * lti) as f64 * (bound * bound) as f64 / 2.0;
+    factors + solve_cost(lti, bound, n_points) <= half_dense(n_free)
+}
+
+/// Flops of the reduced matrix's blocks and its factorisation.
+fn solve_cost(lti: usize, bound: usize, n_points: usize) -> f64 {
+    let (lti, bound, points) = (lti as f64, bound as f64, n_points as f64);
     let rank = points * bound;
-    let factors = points * lti * bound * bound / 2.0;
-    let blocks = points * (points + 1.0) / 2.0 * bound * bound * lti;
-    factors + blocks + rank * rank * rank / 3.0 <= 0.5 * nf * nf * nf / 3.0
+    points * (points + 1.0) / 2.0 * bound * bound * lti + rank * rank * rank / 3.0
+}
+
+/// Half the flops of the dense factorisation of `n` parameters.
+fn half_dense(n: usize) -> f64 {
+    let n = n as f64;
+    0.5 * n * n * n / 3.0
 }
 
 /// One point's factor: `H_q = L L^T` (to the truncation) and `2 J_q^T r_q = L c`.
@@ -72,6 +82,8 @@ struct PointFactor {
 #[derive(Debug, Clone)]
 pub struct PointFactors {
     lti: usize,
+    /// The shape's bound on every point's rank.
+    bound: usize,
     /// Basis index and LTI index of every free parameter.
     map: Vec<(usize, usize)>,
     points: Vec<PointFactor>,
@@ -153,6 +165,7 @@ impl PointFactors {
         psi: Vec<Vec<f64>>,
         map: Vec<(usize, usize)>,
         lti: usize,
+        bound: usize,
     ) -> Result<Self> {
         let points = grams
             .par_iter()
@@ -172,16 +185,27 @@ impl PointFactors {
                 Ok(PointFactor { psi, l, rank, c })
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(PointFactors { lti, map, points })
+        Ok(PointFactors {
+            lti,
+            bound,
+            map,
+            points,
+        })
     }
 
     /// The factors of two sums of points over the same free parameters as one.
     pub fn join(mut self, other: PointFactors) -> Option<PointFactors> {
-        if self.lti != other.lti || self.map != other.map {
+        if self.lti != other.lti || self.bound != other.bound || self.map != other.map {
             return None;
         }
         self.points.extend(other.points);
         Some(self)
+    }
+
+    /// Whether a Newton system of `n` parameters is solved for at most half
+    /// the dense price through the factors, by the shape alone.
+    pub fn newton_worth_it(&self, n: usize) -> bool {
+        solve_cost(self.lti, self.bound, self.points.len()) <= half_dense(n)
     }
 
     /// Columns of `U`: the sum of the points' ranks.

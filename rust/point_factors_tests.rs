@@ -100,7 +100,7 @@ fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize])
         .iter()
         .map(|&(i, p)| 2.0 * (0..points).map(|q| psi[q][i] * jtr[q][p]).sum::<f64>())
         .collect();
-    let factors = PointFactors::new(&grams, &jtr, psi, map, lti).unwrap();
+    let factors = PointFactors::new(&grams, &jtr, psi, map, lti, rank).unwrap();
     GaussNewton {
         vnls: 1.0,
         gradient,

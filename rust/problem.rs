@@ -169,12 +169,13 @@ impl Problem {
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
         let (gradient, gram) = self.assemble(&grams, &jtr, free)?;
-        let factors = if self.factored(free) {
+        let bound = self.rank_bound();
+        let factors = if worth_it(lti, bound, self.data.n_points(), free.len()) {
             let psi = (0..self.data.n_points())
                 .map(|q| self.psi(q).to_vec())
                 .collect();
             let map = free.indices().iter().map(|&u| self.param_map[u]).collect();
-            Some(PointFactors::new(&grams, &jtr, psi, map, lti)?)
+            Some(PointFactors::new(&grams, &jtr, psi, map, lti, bound)?)
         } else {
             None
         };
@@ -186,14 +187,13 @@ impl Problem {
         })
     }
 
-    /// Whether the Levenberg-Marquardt steps over `free` go through every
-    /// point's factor ([`crate::point_factors::worth_it`]; the rank of a
-    /// point's Gram matrix is at most `n (l + r) + l r`).
-    fn factored(&self, free: &FreeSet) -> bool {
+    /// The rank of a point's Gram matrix is at most `n (l + r) + l r`: the
+    /// frozen response does not see the `n^2` similarity transformations
+    /// (the Levenberg-Marquardt steps go through every point's factor
+    /// where [`crate::point_factors::worth_it`] says so).
+    fn rank_bound(&self) -> usize {
         let s = &self.shape;
-        let lti = s.lti_len();
-        let bound = (s.n * (s.l + s.r) + s.l * s.r).min(lti);
-        worth_it(lti, bound, self.data.n_points(), free.len())
+        (s.n * (s.l + s.r) + s.l * s.r).min(s.lti_len())
     }
 
     /// Hessenberg forms of the frozen models at every point.

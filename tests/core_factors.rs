@@ -4,11 +4,13 @@
 //! the similarity transformations leave, and the same fit on any number
 //! of threads.
 
+use lpvid::l21::cone_groups;
 use lpvid::lm::{lm_step, marquardt_diagonal, LmSystem};
+use lpvid::socp::{ConeProblem, ConeSolver};
 use lpvid::testing::{on_threads, Lcg};
 use lpvid::{
-    frequency_response, levenberg_marquardt, FreeSet, FrfData, LmSettings, Matrix, Problem, Shape,
-    Silent,
+    frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
+    Problem, Shape, Silent,
 };
 use num_complex::Complex64 as C64;
 
@@ -146,4 +148,54 @@ fn a_factored_fit_takes_the_same_steps_on_one_thread_and_on_two() {
         );
     }
     assert_eq!(one.theta, two.theta);
+}
+
+#[test]
+fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
+    let (p, start) = problem();
+    let free = FreeSet::all(start.len());
+    let gn = p.gauss_newton(&start, &free).unwrap();
+    assert!(gn.factors.is_some());
+    let mut dense = gn.clone();
+    dense.factors = None;
+    let diag = marquardt_diagonal(&gn);
+    let m = p.n_residuals() as f64;
+    // A small gamma keeps the groups open (972 grouped parameters with
+    // mu >= 1e-4: the factored Newton systems); a larger one takes some to
+    // zero (the dense system of the rest).
+    let mut zeroed = Vec::new();
+    for gamma in [1e-3, 1.0] {
+        let settings = L21Settings {
+            gamma,
+            ..L21Settings::default()
+        };
+        let groups = cone_groups(p.shape(), &free, &[1.0; 3], &start, &settings).unwrap();
+        let cone = |gn| ConeProblem {
+            gn,
+            diag: &diag,
+            theta: &start,
+            groups: &groups,
+            gamma,
+            n_residuals: m,
+            pinned: None,
+            newton: true,
+        };
+        for mu in [1e-8, 1e-4, 1e-2] {
+            let a = cone(&gn).solve(mu, &mut ConeSolver::new(1e-10)).unwrap();
+            let b = cone(&dense).solve(mu, &mut ConeSolver::new(1e-10)).unwrap();
+            assert!(a.status.contains("Newton") && b.status.contains("Newton"));
+            assert_eq!(a.iterations, b.iterations, "gamma {gamma} mu {mu}");
+            assert_eq!(a.zeroed, b.zeroed, "gamma {gamma} mu {mu}");
+            let (sa, sb) = (a.step.unwrap(), b.step.unwrap());
+            let err = relative(&sa, &sb);
+            assert!(err < 1e-11, "gamma {gamma} mu {mu}: {err:e}");
+            if gamma == 1e-3 {
+                // The factored route ran: other last bits.
+                assert_ne!(sa, sb);
+            }
+            zeroed.push(a.zeroed);
+        }
+    }
+    assert_eq!(zeroed[1..3], [0, 0], "{zeroed:?}");
+    assert!(zeroed[3..].iter().all(|&z| z > 0), "{zeroed:?}");
 }

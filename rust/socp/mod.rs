@@ -41,6 +41,7 @@
 //! program, 1088 variables per solve where the answer moved 576, and a
 //! cone step took 3.5 times as long).
 
+mod factored;
 mod group;
 mod newton;
 mod packed;

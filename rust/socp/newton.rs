@@ -31,6 +31,7 @@
 //! definite, when a group is let go more than [`RELEASES`] times, or after
 //! [`MAX_ITERATIONS`]; the caller then has Clarabel solve the program.
 
+use super::factored::FactoredHessian;
 use super::packed::Packed;
 use super::{ConeGroup, ConeProblem};
 use crate::dense::{cholesky_solve, factor_lower};
@@ -83,7 +84,7 @@ pub(super) struct NewtonGroup {
 }
 
 impl NewtonGroup {
-    fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
+    pub(super) fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
         let xs = &x[self.range()];
         self.alpha
             .iter()
@@ -167,16 +168,17 @@ pub(super) fn newton(
     groups: &[NewtonGroup],
     tol: f64,
     start: Option<Vec<f64>>,
+    factored: Option<&FactoredHessian>,
 ) -> Result<Newton> {
     let packed = Packed::of(p)?;
     let x = start.unwrap_or_else(|| vec![0.0; q.len()]);
-    let out = iterate(p, &packed, q, groups, tol, x);
+    let out = iterate(p, &packed, q, groups, tol, x, factored);
     packed.fill(p);
     out
 }
 
 impl NewtonGroup {
-    fn range(&self) -> std::ops::Range<usize> {
+    pub(super) fn range(&self) -> std::ops::Range<usize> {
         self.start..self.start + self.alpha.len()
     }
 
@@ -236,6 +238,48 @@ fn quad_gradient(packed: &Packed, q: &[f64], x: &[f64]) -> Vec<f64> {
     packed.times(x).iter().zip(q).map(|(a, b)| a + b).collect()
 }
 
+/// The Newton step `-H^-1 grad` by the dense Hessian, formed and factored
+/// in `p` (its lower triangle): `P`, then each open group's block; a held
+/// group's entries a unit row and column. `None` when it is not
+/// numerically positive definite.
+fn dense_step(
+    p: &mut Mat<f64>,
+    packed: &Packed,
+    groups: &[NewtonGroup],
+    norms: &[f64],
+    held: &[bool],
+    x: &[f64],
+    grad: &[f64],
+) -> Result<Option<Vec<f64>>> {
+    let n = grad.len();
+    packed.fill_lower(p);
+    for ((g, &s), _) in groups.iter().zip(norms).zip(held).filter(|(_, &h)| !h) {
+        let z: Vec<f64> = g.z(x).collect();
+        let c = g.weight / s;
+        for (a, (&za, &aa)) in z.iter().zip(&g.alpha).enumerate() {
+            for (b, (&zb, &ab)) in z.iter().zip(&g.alpha).enumerate().take(a + 1) {
+                let eye = if a == b { 1.0 } else { 0.0 };
+                p[(g.start + a, g.start + b)] += c * aa * ab * (eye - za * zb / (s * s));
+            }
+        }
+    }
+    for (g, _) in groups.iter().zip(held).filter(|(_, &h)| h) {
+        for i in g.range() {
+            for j in 0..n {
+                p[(i, j)] = 0.0;
+                p[(j, i)] = 0.0;
+            }
+            p[(i, i)] = 1.0;
+        }
+    }
+    if !factor_lower(p.as_mut())? {
+        return Ok(None);
+    }
+    let mut step = Mat::from_fn(n, 1, |i, _| -grad[i]);
+    cholesky_solve(p.as_ref(), step.as_mut());
+    Ok(Some((0..n).map(|i| step[(i, 0)]).collect()))
+}
+
 /// [`newton`]'s iterations from `x`, `p` the work space.
 ///
 /// **Groups held at zero.** A group within [`COLLAPSE`] of zero, or that
@@ -258,8 +302,8 @@ fn iterate(
     groups: &[NewtonGroup],
     tol: f64,
     mut x: Vec<f64>,
+    factored: Option<&FactoredHessian>,
 ) -> Result<Newton> {
-    let n = q.len();
     let mut held = vec![false; groups.len()];
     let mut released = vec![0u32; groups.len()];
     // Held groups are checked at the start and where the others converged.
@@ -302,37 +346,26 @@ fn iterate(
         let px = packed.times(&x);
         let quad_grad: Vec<f64> = px.iter().zip(q).map(|(a, b)| a + b).collect();
         let mut grad = quad_grad.clone();
-        // The Hessian (its lower triangle is what is factored): P, then
-        // each open group's block; a held group's entries a unit row and
-        // column.
-        packed.fill_lower(p);
         for ((g, &s), _) in groups.iter().zip(&norms).zip(&held).filter(|(_, &h)| !h) {
-            let z: Vec<f64> = g.z(&x).collect();
             let c = g.weight / s;
-            for (a, (&za, &aa)) in z.iter().zip(&g.alpha).enumerate() {
+            for (a, (za, &aa)) in g.z(&x).zip(&g.alpha).enumerate() {
                 grad[g.start + a] += c * aa * za;
-                for (b, (&zb, &ab)) in z.iter().zip(&g.alpha).enumerate().take(a + 1) {
-                    let eye = if a == b { 1.0 } else { 0.0 };
-                    p[(g.start + a, g.start + b)] += c * aa * ab * (eye - za * zb / (s * s));
-                }
             }
         }
         for (g, _) in groups.iter().zip(&held).filter(|(_, &h)| h) {
-            for i in g.range() {
-                grad[i] = 0.0;
-                for j in 0..n {
-                    p[(i, j)] = 0.0;
-                    p[(j, i)] = 0.0;
-                }
-                p[(i, i)] = 1.0;
-            }
+            grad[g.range()].iter_mut().for_each(|v| *v = 0.0);
         }
-        if !factor_lower(p.as_mut())? {
-            return Ok(gave_up);
-        }
-        let mut step = Mat::from_fn(n, 1, |i, _| -grad[i]);
-        cholesky_solve(p.as_ref(), step.as_mut());
-        let dx: Vec<f64> = (0..n).map(|i| step[(i, 0)]).collect();
+        let prepared = match factored {
+            Some(f) => f.prepare(groups, &norms, &held, &x)?,
+            None => None,
+        };
+        let dx = match prepared {
+            Some(solver) => solver.solve(&grad.iter().map(|g| -g).collect::<Vec<_>>()),
+            None => match dense_step(p, packed, groups, &norms, &held, &x, &grad)? {
+                Some(dx) => dx,
+                None => return Ok(gave_up),
+            },
+        };
         let decrement = -dot(&grad, &dx);
         let value = 0.5 * dot(&x, &px) + dot(q, &x);
         let penalty: f64 = groups.iter().zip(&norms).map(|(g, s)| g.weight * s).sum();

@@ -3,6 +3,7 @@
 //! Clarabel when Newton's method gives up (see the module notes of
 //! [`super`]).
 
+use super::factored::FactoredHessian;
 use super::newton::{newton, Newton};
 use super::{ConeGroup, ConeProblem, ConeSolver};
 use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for, product};
@@ -143,7 +144,30 @@ impl ConeProblem<'_> {
             Method::Newton(start) if ng > 0 => {
                 let groups = self.newton_groups(&open, scale);
                 let x0 = start.map(|e| grouped.iter().map(|&p| e[p]).collect());
-                newton(&mut p_red, &q_red, &groups, cache.tol(), x0)?
+                // Through every point's factor where that is cheaper (no
+                // pinned curvature: it is not of the factors' form).
+                let factored = match &self.gn.factors {
+                    Some(f) if extra.is_none() && f.newton_worth_it(nk) => {
+                        Some(FactoredHessian::new(
+                            f,
+                            grouped.clone(),
+                            others.clone(),
+                            scale,
+                            self.diag,
+                            mu,
+                            m_res,
+                        ))
+                    }
+                    _ => None,
+                };
+                newton(
+                    &mut p_red,
+                    &q_red,
+                    &groups,
+                    cache.tol(),
+                    x0,
+                    factored.as_ref(),
+                )?
             }
             _ => Newton::GaveUp { iterations: 0 },
         };
