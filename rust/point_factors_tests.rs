@@ -3,34 +3,24 @@
 use super::*;
 use crate::lm::lm_step;
 use crate::objective::GaussNewton;
-
-/// A reproducible stream of numbers in [-1, 1).
-struct Stream(u64);
-
-impl Stream {
-    fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    }
-}
+use crate::testing::{relative_gap, Lcg};
 
 /// `G G^T` (`lti x lti`, column-major) for `G` of `rank` random columns,
 /// row `p` scaled by `10^(scale p)`, and a vector in its range.
-fn low_rank(s: &mut Stream, lti: usize, rank: usize, scale: f64) -> (Vec<f64>, Vec<f64>) {
+fn low_rank(s: &mut Lcg, lti: usize, rank: usize, scale: f64) -> (Vec<f64>, Vec<f64>) {
     let rows: Vec<f64> = (0..lti)
         .map(|p| 10f64.powf(scale * p as f64 / lti as f64))
         .collect();
-    let g: Vec<f64> = (0..lti * rank).map(|k| s.next() * rows[k % lti]).collect();
+    let g: Vec<f64> = (0..lti * rank)
+        .map(|k| s.next_f64() * rows[k % lti])
+        .collect();
     let mut h = vec![0.0; lti * lti];
     for i in 0..lti {
         for j in 0..lti {
             h[i + j * lti] = (0..rank).map(|k| g[i + k * lti] * g[j + k * lti]).sum();
         }
     }
-    let coef: Vec<f64> = (0..rank).map(|_| s.next()).collect();
+    let coef: Vec<f64> = (0..rank).map(|_| s.next_f64()).collect();
     let jtr = (0..lti)
         .map(|i| (0..rank).map(|k| g[i + k * lti] * coef[k]).sum())
         .collect();
@@ -39,7 +29,7 @@ fn low_rank(s: &mut Stream, lti: usize, rank: usize, scale: f64) -> (Vec<f64>, V
 
 #[test]
 fn the_pivoted_factor_finds_the_rank_of_a_badly_scaled_matrix_and_rebuilds_it() {
-    let mut s = Stream(7);
+    let mut s = Lcg(7);
     for (lti, rank, scale) in [(40, 12, 0.0), (56, 20, 6.0), (30, 30, 3.0), (25, 1, 8.0)] {
         let (h, _) = low_rank(&mut s, lti, rank, scale);
         let (l, pivots, found) = pivoted_factor(&h, lti).unwrap();
@@ -76,14 +66,14 @@ fn a_point_the_model_does_not_see_has_no_factor() {
 /// free parameters `free` of `n_coef` basis coefficients: dense, and with
 /// the factors.
 fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize]) -> GaussNewton {
-    let mut s = Stream(11);
+    let mut s = Lcg(11);
     let (mut grams, mut jtr, mut psi) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..points {
         let (h, g) = low_rank(&mut s, lti, rank, 2.0);
         grams.push(h);
         jtr.push(g);
         let mut row = vec![1.0];
-        row.extend((1..n_coef).map(|_| s.next()));
+        row.extend((1..n_coef).map(|_| s.next_f64()));
         psi.push(row);
     }
     let map: Vec<(usize, usize)> = free.iter().map(|&u| (u / lti, u % lti)).collect();
@@ -109,12 +99,6 @@ fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize])
     }
 }
 
-fn relative(a: &[f64], b: &[f64]) -> f64 {
-    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let size: f64 = b.iter().map(|y| y * y).sum();
-    (diff / size).sqrt()
-}
-
 #[test]
 fn the_factored_step_is_the_dense_step_with_and_without_fixed_parameters() {
     let (points, lti, rank, n_coef) = (5, 30, 7, 3);
@@ -135,7 +119,7 @@ fn the_factored_step_is_the_dense_step_with_and_without_fixed_parameters() {
         for mu in [1e-4, 1e-2, 1.0, 100.0] {
             let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
             let factored = system.step(factors, &diag, mu).unwrap().unwrap();
-            let err = relative(&factored, &dense);
+            let err = relative_gap(&factored, &dense);
             assert!(err < 1e-8, "nf {nf} mu {mu}: {err:e}");
         }
     }
@@ -173,7 +157,7 @@ fn joined_factors_step_as_the_sum_of_their_points() {
     let system = FactoredSystem::new(factors, &diag).unwrap();
     let dense = lm_step(&sum, &diag, 1e-2).unwrap().unwrap();
     let factored = system.step(factors, &diag, 1e-2).unwrap().unwrap();
-    assert!(relative(&factored, &dense) < 1e-8);
+    assert!(relative_gap(&factored, &dense) < 1e-8);
     // Other free parameters: no join.
     let fewer: Vec<usize> = (1..n_coef * lti).collect();
     let c = pieces(2, lti, 5, n_coef, &fewer);

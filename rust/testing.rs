@@ -18,6 +18,13 @@ pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         .install(f)
 }
 
+/// `||a - b|| / ||b||`: how far a vector is from a reference.
+pub fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
+    let gap = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>();
+    let size = b.iter().map(|y| y * y).sum::<f64>();
+    (gap / size).sqrt()
+}
+
 impl Lcg {
     /// The next number, uniform in `[-0.5, 0.5)`.
     pub fn next_f64(&mut self) -> f64 {

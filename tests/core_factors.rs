@@ -7,7 +7,7 @@
 use lpvid::l21::cone_groups;
 use lpvid::lm::{lm_step, marquardt_diagonal, LmSystem};
 use lpvid::socp::{ConeProblem, ConeSolver};
-use lpvid::testing::{on_threads, Lcg};
+use lpvid::testing::{on_threads, relative_gap, Lcg};
 use lpvid::{
     frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
     Problem, Shape, Silent,
@@ -77,12 +77,6 @@ fn problem() -> (Problem, Vec<f64>) {
     (Problem::new(shape, data, &basis()).unwrap(), start)
 }
 
-fn relative(a: &[f64], b: &[f64]) -> f64 {
-    let diff: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let size: f64 = b.iter().map(|y| y * y).sum();
-    (diff / size).sqrt()
-}
-
 #[test]
 fn a_big_problems_step_goes_through_its_points_factors_and_is_the_dense_step() {
     let (p, start) = problem();
@@ -102,7 +96,7 @@ fn a_big_problems_step_goes_through_its_points_factors_and_is_the_dense_step() {
         for mu in [1e-4, 1e-2, 1.0] {
             let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
             let factored = system.step(&gn, &diag, mu).unwrap().unwrap();
-            let err = relative(&factored, &dense);
+            let err = relative_gap(&factored, &dense);
             assert!(err < 1e-7, "{} free, mu {mu}: {err:e}", free.len());
         }
     }
@@ -187,7 +181,7 @@ fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
             assert_eq!(a.iterations, b.iterations, "gamma {gamma} mu {mu}");
             assert_eq!(a.zeroed, b.zeroed, "gamma {gamma} mu {mu}");
             let (sa, sb) = (a.step.unwrap(), b.step.unwrap());
-            let err = relative(&sa, &sb);
+            let err = relative_gap(&sa, &sb);
             assert!(err < 1e-11, "gamma {gamma} mu {mu}: {err:e}");
             if gamma == 1e-3 {
                 // The factored route ran: other last bits.

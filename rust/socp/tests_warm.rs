@@ -3,17 +3,12 @@
 
 use super::several::several;
 use super::*;
+use crate::testing::relative_gap;
 
 fn cold(c: &Case, mu: f64) -> ConeStep {
     c.cone()
         .solve(mu, &mut ConeSolver::new(1e-10))
         .expect("memory")
-}
-
-fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
-    let gap = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>();
-    let size = b.iter().map(|y| y * y).sum::<f64>();
-    (gap / size).sqrt()
 }
 
 #[test]
