@@ -21,6 +21,7 @@ use crate::error::{Error, Result};
 use faer::Mat;
 use rayon::prelude::*;
 use std::cell::Cell;
+use std::mem::MaybeUninit;
 use std::sync::atomic::{AtomicI64, Ordering};
 
 thread_local! {
@@ -203,6 +204,35 @@ pub fn try_par_columns(
     }
     // SAFETY: `try_grow` made room for `len` values and the loop above
     // wrote every one of them (each of the `cols` chunks of `rows` slots).
+    unsafe { v.set_len(len) };
+    Ok(v)
+}
+
+/// As [`try_par_columns`], every column `j` written whole by
+/// `fill(j, column)`.
+///
+/// # Safety
+///
+/// `fill` must write every one of the `rows` slots of the column it is
+/// given: the result is read as initialised.
+pub unsafe fn try_par_columns_by(
+    rows: usize,
+    cols: usize,
+    fill: impl Fn(usize, &mut [MaybeUninit<f64>]) + Sync,
+    what: &'static str,
+) -> Result<Vec<f64>> {
+    let len = rows.saturating_mul(cols);
+    let mut v = Vec::new();
+    try_grow(&mut v, len, what)?;
+    if rows > 0 {
+        v.spare_capacity_mut()[..len]
+            .par_chunks_mut(rows)
+            .enumerate()
+            .for_each(|(j, col)| fill(j, col));
+    }
+    // SAFETY: `try_grow` made room for `len` values and `fill` wrote every
+    // slot of each of the `cols` chunks of `rows` slots (the caller's
+    // promise).
     unsafe { v.set_len(len) };
     Ok(v)
 }
