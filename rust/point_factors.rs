@@ -104,7 +104,7 @@ pub fn pivoted_factor(h: &[f64], lti: usize) -> Result<(Vec<f64>, Vec<usize>, us
         .iter()
         .map(|&s| if s > 0.0 { 1.0 } else { 0.0 })
         .collect();
-    let mut l = try_vec(0, 0.0, "a point's Gram factor")?;
+    let mut l = Vec::new();
     let mut pivots = Vec::new();
     let mut col = vec![0.0; lti];
     for j in 0..lti {
@@ -118,7 +118,7 @@ pub fn pivoted_factor(h: &[f64], lti: usize) -> Result<(Vec<f64>, Vec<usize>, us
                         (bi, bv)
                     }
                 });
-        if best.is_nan() || best <= RANK_TOL {
+        if best <= RANK_TOL {
             break;
         }
         for p in 0..lti {

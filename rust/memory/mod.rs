@@ -189,23 +189,13 @@ pub fn try_par_columns(
     f: impl Fn(usize, usize) -> f64 + Sync,
     what: &'static str,
 ) -> Result<Vec<f64>> {
-    let len = rows.saturating_mul(cols);
-    let mut v = Vec::new();
-    try_grow(&mut v, len, what)?;
-    if rows > 0 {
-        v.spare_capacity_mut()[..len]
-            .par_chunks_mut(rows)
-            .enumerate()
-            .for_each(|(j, col)| {
-                for (i, slot) in col.iter_mut().enumerate() {
-                    slot.write(f(i, j));
-                }
-            });
-    }
-    // SAFETY: `try_grow` made room for `len` values and the loop above
-    // wrote every one of them (each of the `cols` chunks of `rows` slots).
-    unsafe { v.set_len(len) };
-    Ok(v)
+    let fill = |j: usize, col: &mut [MaybeUninit<f64>]| {
+        for (i, slot) in col.iter_mut().enumerate() {
+            slot.write(f(i, j));
+        }
+    };
+    // SAFETY: `fill` writes every slot of the column it is given.
+    unsafe { try_par_columns_by(rows, cols, fill, what) }
 }
 
 /// As [`try_par_columns`], every column `j` written whole by

@@ -35,9 +35,9 @@ pub(super) struct FactoredHessian<'a> {
     factors: &'a PointFactors,
     /// Free index of every Newton variable (the grouped parameters, in the
     /// groups' order).
-    grouped: Vec<usize>,
+    grouped: &'a [usize],
     /// Free indices of the open parameters outside every group.
-    others: Vec<usize>,
+    others: &'a [usize],
     /// `sqrt(2/M) S_f` and `(2/M) S_f^2 mu D_f` of every free parameter.
     root: Vec<f64>,
     base: Vec<f64>,
@@ -67,8 +67,8 @@ impl<'a> FactoredHessian<'a> {
     /// `n_residuals` `M`.
     pub(super) fn new(
         factors: &'a PointFactors,
-        grouped: Vec<usize>,
-        others: Vec<usize>,
+        grouped: &'a [usize],
+        others: &'a [usize],
         scale: &[f64],
         diag: &[f64],
         mu: f64,
@@ -103,7 +103,7 @@ impl<'a> FactoredHessian<'a> {
     ) -> Result<Option<Prepared<'a, 'b>>> {
         let nf = self.root.len();
         let mut diag = vec![0.0; nf];
-        for &f in &self.others {
+        for &f in self.others {
             diag[f] = self.base[f];
         }
         let mut terms = Vec::new();

@@ -147,17 +147,9 @@ impl ConeProblem<'_> {
                 // Through every point's factor where that is cheaper (no
                 // pinned curvature: it is not of the factors' form).
                 let factored = match &self.gn.factors {
-                    Some(f) if extra.is_none() && f.newton_worth_it(nk) => {
-                        Some(FactoredHessian::new(
-                            f,
-                            grouped.clone(),
-                            others.clone(),
-                            scale,
-                            self.diag,
-                            mu,
-                            m_res,
-                        ))
-                    }
+                    Some(f) if extra.is_none() && f.newton_worth_it(nk) => Some(
+                        FactoredHessian::new(f, &grouped, &others, scale, self.diag, mu, m_res),
+                    ),
                     _ => None,
                 };
                 newton(
