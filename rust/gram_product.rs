@@ -180,7 +180,10 @@ pub fn gram_product_with(
 }
 
 /// Rows `r0..r0 + width` of a row-major `rows x stride` matrix, sample by
-/// sample: `panel[s * width + q] = x[(r0 + q) * stride + s]`, zero past `rows`.
+/// sample: `panel[s * width + q] = x[(r0 + q) * stride + s]`, zero past
+/// `rows`. Where the processor runs AVX2 (every one whose kernels pack),
+/// four rows by four samples at a time are transposed in registers: a copy
+/// either way, the same panels.
 fn pack(
     panel: &mut [f64],
     x: &[f64],
@@ -190,16 +193,34 @@ fn pack(
     width: usize,
     rows: usize,
 ) {
-    for q in 0..width {
-        let r = r0 + q;
-        if r < rows {
-            let row = &x[r * stride..r * stride + k];
+    let panel = &mut panel[..k * width];
+    let live = rows.saturating_sub(r0).min(width);
+    let mut q = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        let whole = k / 4 * 4;
+        while q + 4 <= live {
+            let rows4 = &x[(r0 + q) * stride..];
+            // SAFETY: AVX2 is available; rows `r0 + q..r0 + q + 4` of `x`
+            // have `k` samples each, and the panel `k * width` values.
+            unsafe { x86::transpose4(panel, rows4, stride, whole, q, width) };
+            for s in whole..k {
+                for qq in q..q + 4 {
+                    panel[s * width + qq] = x[(r0 + qq) * stride + s];
+                }
+            }
+            q += 4;
+        }
+    }
+    for qq in q..width {
+        if qq < live {
+            let row = &x[(r0 + qq) * stride..(r0 + qq) * stride + k];
             for (s, &value) in row.iter().enumerate() {
-                panel[s * width + q] = value;
+                panel[s * width + qq] = value;
             }
         } else {
             for s in 0..k {
-                panel[s * width + q] = 0.0;
+                panel[s * width + qq] = 0.0;
             }
         }
     }
@@ -282,6 +303,40 @@ mod x86 {
                 }
             }
         };
+    }
+
+    /// Four rows of `x` (`stride` apart, from the first) into columns
+    /// `q..q + 4` of a `width`-wide panel, samples `0..k` (`k` a multiple
+    /// of four): `panel[s * width + q + i] = x[i * stride + s]`.
+    ///
+    /// # Safety
+    /// The processor must run AVX2; `x` holds `3 stride + k` values and
+    /// `panel` `k width`, `q + 4 <= width`.
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn transpose4(
+        panel: &mut [f64],
+        x: &[f64],
+        stride: usize,
+        k: usize,
+        q: usize,
+        width: usize,
+    ) {
+        assert!(k.is_multiple_of(4) && q + 4 <= width && panel.len() >= k * width);
+        assert!(k == 0 || x.len() >= 3 * stride + k);
+        let (src, dst) = (x.as_ptr(), panel.as_mut_ptr());
+        for s in (0..k).step_by(4) {
+            let r0 = _mm256_loadu_pd(src.add(s));
+            let r1 = _mm256_loadu_pd(src.add(stride + s));
+            let r2 = _mm256_loadu_pd(src.add(2 * stride + s));
+            let r3 = _mm256_loadu_pd(src.add(3 * stride + s));
+            let (t0, t1) = (_mm256_unpacklo_pd(r0, r1), _mm256_unpackhi_pd(r0, r1));
+            let (t2, t3) = (_mm256_unpacklo_pd(r2, r3), _mm256_unpackhi_pd(r2, r3));
+            let at = dst.add(s * width + q);
+            _mm256_storeu_pd(at, _mm256_permute2f128_pd(t0, t2, 0x20));
+            _mm256_storeu_pd(at.add(width), _mm256_permute2f128_pd(t1, t3, 0x20));
+            _mm256_storeu_pd(at.add(2 * width), _mm256_permute2f128_pd(t0, t2, 0x31));
+            _mm256_storeu_pd(at.add(3 * width), _mm256_permute2f128_pd(t1, t3, 0x31));
+        }
     }
 
     block_kernel!(
