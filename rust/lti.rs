@@ -311,13 +311,39 @@ impl Resolvent {
     }
 }
 
-/// `out = Q v` for a real `Q` and complex lanes `v`.
+/// Rows of `out` that [`map_back`] sums at a time, in registers.
+const MAP_ROWS: usize = 4;
+
+/// `out = Q v` for a real `Q` and complex lanes `v`: every entry
+/// `((0 + v_0 q_i0) + v_1 q_i1) + ...` in that order, [`MAP_ROWS`] rows at
+/// a time so that their sums stay in registers.
 fn map_back(q: &[f64], n: usize, v: &[Cx], out: &mut [Cx]) {
-    out.iter_mut().for_each(|o| *o = Cx::default());
-    for (a, &va) in v.iter().enumerate() {
-        let col = &q[a * n..(a + 1) * n];
-        for (o, &qa) in out.iter_mut().zip(col) {
-            *o += va * qa;
+    let whole = n / MAP_ROWS * MAP_ROWS;
+    for first in (0..whole).step_by(MAP_ROWS) {
+        let mut re = [[0.0f64; LANES]; MAP_ROWS];
+        let mut im = [[0.0f64; LANES]; MAP_ROWS];
+        for (a, va) in v[..n].iter().enumerate() {
+            let col: &[f64; MAP_ROWS] = q[a * n + first..a * n + first + MAP_ROWS]
+                .try_into()
+                .expect("MAP_ROWS values");
+            for i in 0..MAP_ROWS {
+                for k in 0..LANES {
+                    re[i][k] += va.re[k] * col[i];
+                    im[i][k] += va.im[k] * col[i];
+                }
+            }
+        }
+        for i in 0..MAP_ROWS {
+            out[first + i] = Cx {
+                re: re[i],
+                im: im[i],
+            };
+        }
+    }
+    for (i, o) in out[..n].iter_mut().enumerate().skip(whole) {
+        *o = Cx::default();
+        for (a, &va) in v[..n].iter().enumerate() {
+            *o += va * q[i + a * n];
         }
     }
 }
