@@ -349,10 +349,7 @@ impl Problem {
                 }
             }
             if first {
-                // every psi_qi psi_qj zero
-                column.iter_mut().for_each(|d| {
-                    d.write(0.0);
-                });
+                column.fill(MaybeUninit::new(0.0)); // every psi_qi psi_qj zero
             }
         };
         // SAFETY: `fill` writes every slot of its column (the first term,
