@@ -302,11 +302,9 @@ impl Problem {
     }
 
     /// Gradient and `J^T J` over the free parameters from the per-point
-    /// Gram matrices. For every pair of basis indices `i <= j`,
-    /// `S_ij = sum_q psi_qi psi_qj H_q`; entry `(u, v)` of `J^T J` is
-    /// `S_{i_u i_v}[p_u, p_v]` (and `S_ji = S_ij`: every `H_q` is exactly
-    /// symmetric, so every `S_ij` is too, and a column of `J^T J` reads
-    /// columns of the `S_ij`).
+    /// Gram matrices: entry `(u, v)` of `J^T J`, `u` and `v` of basis
+    /// indices `i` and `j` and LTI indices `p_u` and `p_v`, is
+    /// `sum_q psi_qi psi_qj H_q[p_u, p_v]`.
     fn assemble(
         &self,
         full: &[Vec<f64>],
@@ -314,64 +312,13 @@ impl Problem {
         free: &FreeSet,
     ) -> Result<(Vec<f64>, Vec<f64>)> {
         let lti = self.shape.lti_len();
-        let m = self.shape.n_coef();
         let n_points = self.data.n_points();
         // Basis index and LTI index of every free parameter.
         let map: Vec<(usize, usize)> = free.indices().iter().map(|&u| self.param_map[u]).collect();
         let nf = free.len();
-        // S_ij for every pair i <= j of basis indices, their columns side
-        // by side: column y of pair k's sum is column y * np + k of `sums`,
-        // so that column y of every H_q is read from memory once for all
-        // the pairs (the columns in parallel). Each entry is the sum over
-        // the points in their order, its first term written into the empty
-        // room (no pass of zeros: 12.6 MB an evaluation at n = 16).
-        let pairs: Vec<(usize, usize)> = (0..m).flat_map(|i| (i..m).map(move |j| (i, j))).collect();
-        let np = pairs.len();
-        let fill = |c: usize, column: &mut [MaybeUninit<f64>]| {
-            let (y, (i, j)) = (c / np, pairs[c % np]);
-            let mut first = true;
-            for (q, hq) in full.iter().enumerate().take(n_points) {
-                let cq = self.psi(q)[i] * self.psi(q)[j];
-                if cq == 0.0 {
-                    continue;
-                }
-                let source = &hq[y * lti..(y + 1) * lti];
-                if first {
-                    for (d, h) in column.iter_mut().zip(source) {
-                        d.write(cq * h);
-                    }
-                    first = false;
-                } else {
-                    for (d, h) in column.iter_mut().zip(source) {
-                        // SAFETY: written by the first term above.
-                        unsafe { *d.assume_init_mut() += cq * h };
-                    }
-                }
-            }
-            if first {
-                column.fill(MaybeUninit::new(0.0)); // every psi_qi psi_qj zero
-            }
-        };
-        // SAFETY: `fill` writes every slot of its column (the first term,
-        // or zeros).
-        let sums = unsafe {
-            try_par_columns_by(
-                lti,
-                lti * np,
-                fill,
-                "the Gram sums of the pairs of basis functions",
-            )
-        }?;
-        // Pair (i, j), i <= j, at slot i m + j.
-        let mut slot = vec![0; m * m];
-        for (k, &(i, j)) in pairs.iter().enumerate() {
-            slot[i * m + j] = k;
-        }
-        // Entry (a, b) is S_ij[p_a, p_b] with i <= j the two basis indices
-        // (S_ij is symmetric as every H_q is): whole columns, in parallel,
-        // each a copy of runs of consecutive free parameters of one basis
-        // index (contiguous in a column of S_ij; entry by entry, the copy
-        // took about a fifth of an evaluation at n = 16).
+        // Runs of consecutive free parameters of one basis index: their
+        // entries of a column of `J^T J` come from consecutive entries of a
+        // column of every `H_q`.
         let mut runs: Vec<(usize, usize, usize)> = Vec::new(); // (first, basis, lti index)
         for (u, &(i, p)) in map.iter().enumerate() {
             match runs.last() {
@@ -379,27 +326,44 @@ impl Problem {
                 _ => runs.push((u, i, p)),
             }
         }
-        // SAFETY: the runs cover 0..nf in order (the first starts at 0,
-        // each ends where the next starts, the last at nf), so every slot
-        // of every column is written.
-        let gram = unsafe {
-            try_par_columns_by(
-                nf,
-                nf,
-                |v, column| {
-                    let (j, pv) = map[v];
-                    for (k, &(first, i, pu)) in runs.iter().enumerate() {
-                        let end = runs.get(k + 1).map_or(nf, |r| r.0);
-                        let at = (pv * np + slot[i.min(j) * m + i.max(j)]) * lti + pu;
-                        let source = &sums[at..at + (end - first)];
-                        for (slot, &x) in column[first..end].iter_mut().zip(source) {
-                            slot.write(x);
-                        }
+        // Whole columns, in parallel, straight from the `H_q` (no sums per
+        // pair of basis functions to copy from): each entry the sum over
+        // the points in their order, its first term written into the empty
+        // room (no pass of zeros), with `psi_qi psi_qj` taken smaller basis
+        // index first.
+        let fill = |v: usize, column: &mut [MaybeUninit<f64>]| {
+            let (j, pv) = map[v];
+            for (k, &(first, i, pu)) in runs.iter().enumerate() {
+                let end = runs.get(k + 1).map_or(nf, |r| r.0);
+                let out = &mut column[first..end];
+                let mut written = false;
+                for (q, hq) in full.iter().enumerate().take(n_points) {
+                    let c = self.psi(q)[i.min(j)] * self.psi(q)[i.max(j)];
+                    if c == 0.0 {
+                        continue;
                     }
-                },
-                "the Gauss-Newton matrix J^T J",
-            )
-        }?;
+                    let source = &hq[pu + pv * lti..pu + pv * lti + out.len()];
+                    if written {
+                        for (d, h) in out.iter_mut().zip(source) {
+                            // SAFETY: written by the first term below.
+                            unsafe { *d.assume_init_mut() += c * h };
+                        }
+                    } else {
+                        for (d, h) in out.iter_mut().zip(source) {
+                            d.write(c * h);
+                        }
+                        written = true;
+                    }
+                }
+                if !written {
+                    out.fill(MaybeUninit::new(0.0)); // every psi_qi psi_qj zero
+                }
+            }
+        };
+        // SAFETY: the runs cover 0..nf in order (the first starts at 0,
+        // each ends where the next starts, the last at nf), and `fill`
+        // writes every entry of each run.
+        let gram = unsafe { try_par_columns_by(nf, nf, fill, "the Gauss-Newton matrix J^T J") }?;
         let gradient = free
             .indices()
             .iter()

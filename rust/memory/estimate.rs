@@ -1,7 +1,7 @@
 //! What a fit needs in memory, from the sizes of the problem, before it
 //! starts: the arrays of one Gauss-Newton evaluation (FRF data: the
 //! per-point Gram pieces of every block of lines, the per-point Gram
-//! matrices, their sums per pair of basis functions; time records: the
+//! matrices, `J^T J` from them; time records: the
 //! Jacobian block, the per-thread sums), what the optimiser holds between
 //! evaluations (`J^T J`, the Cholesky factor of a Levenberg-Marquardt
 //! step, the cone step's dense block and the Clarabel solvers) and the
@@ -106,8 +106,8 @@ pub fn frf_evaluation(
     n_free: usize,
     threads: usize,
 ) -> usize {
-    let Shape { n, r, l, nb } = *shape;
-    let (lti, m) = (shape.lti_len(), nb + 1);
+    let Shape { n, r, l, .. } = *shape;
+    let lti = shape.lti_len();
     // Hessenberg forms of the frozen models, and the residuals.
     let forms = n_points * floats(2 * n * n + n * r + l * n + l * r);
     let residual = n_points * n_lines * l * r * C64;
@@ -130,9 +130,9 @@ pub fn frf_evaluation(
     let gram_point = square(lti) + floats(lti);
     let busy = threads.min(n_points);
     let stage2 = n_points * part.max(gram_point) + busy * gram_point;
-    // Stage 3: the sums of every pair of basis functions, and J^T J.
+    // Stage 3: J^T J, from the Gram matrices of the points.
     let result = square(n_free) + floats(n_free);
-    let stage3 = n_points * gram_point + m * (m + 1) / 2 * square(lti) + result;
+    let stage3 = n_points * gram_point + result;
     base + stage1.max(stage2).max(stage3)
 }
 
