@@ -324,6 +324,11 @@ impl GramParts {
             h[x + y * lti] = v;
             h[y + x * lti] = v;
         };
+        // `lti_index(a, b)` of every `Theta_ab`, at `a + b da`.
+        let index: Vec<usize> = (0..da * db)
+            .map(|ab| lti_index(shape, ab % da, ab / da))
+            .collect();
+        let at = |a: usize, b: usize| index[a + b * da];
         for b2 in 0..db {
             for b in 0..=b2 {
                 let iv = b2 * (b2 + 1) / 2 + b;
@@ -335,8 +340,8 @@ impl GramParts {
                             Some(sv) if a < a2 => self.s2[(sv, a2 * (a2 - 1) / 2 + a)],
                             _ => 0.0,
                         };
-                        put(lti_index(shape, a, b), lti_index(shape, a2, b2), s1 - s2);
-                        put(lti_index(shape, a2, b), lti_index(shape, a, b2), s1 + s2);
+                        put(at(a, b), at(a2, b2), s1 - s2);
+                        put(at(a2, b), at(a, b2), s1 + s2);
                     }
                 }
             }
