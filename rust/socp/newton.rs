@@ -32,11 +32,11 @@
 //! [`MAX_ITERATIONS`]; the caller then has Clarabel solve the program.
 
 use super::factored::FactoredHessian;
-use super::packed::Packed;
+use super::packed::Quadratic;
 use super::{ConeGroup, ConeProblem};
 use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
-use faer::Mat;
+use faer::{Mat, MatRef};
 
 /// Most Newton iterations before the cone solver takes over.
 const MAX_ITERATIONS: u32 = 40;
@@ -169,8 +169,9 @@ pub(super) fn newton(
     tol: f64,
     start: Option<Vec<f64>>,
     factored: Option<&FactoredHessian>,
+    schur: Option<MatRef<'_, f64>>,
 ) -> Result<Newton> {
-    let packed = Packed::of(p)?;
+    let packed = Quadratic::of(p, schur)?;
     let x = start.unwrap_or_else(|| vec![0.0; q.len()]);
     let out = iterate(p, &packed, q, groups, tol, x, factored);
     packed.fill(p);
@@ -216,7 +217,7 @@ impl NewtonGroup {
     /// curvature along it against the slope `||w|| (c_g - ||w||)`).
     /// Newton's method cannot start at a kink; from this point it converges
     /// in a few iterations.
-    fn release(&self, packed: &Packed, quad_grad: &[f64], x: &mut [f64]) {
+    fn release(&self, packed: &Quadratic, quad_grad: &[f64], x: &mut [f64]) {
         let w = self.w(quad_grad);
         let size = dot(&w, &w).sqrt();
         let mut v = vec![0.0; x.len()];
@@ -234,7 +235,7 @@ impl NewtonGroup {
 }
 
 /// `P x + q`.
-fn quad_gradient(packed: &Packed, q: &[f64], x: &[f64]) -> Vec<f64> {
+fn quad_gradient(packed: &Quadratic, q: &[f64], x: &[f64]) -> Vec<f64> {
     packed.times(x).iter().zip(q).map(|(a, b)| a + b).collect()
 }
 
@@ -244,7 +245,7 @@ fn quad_gradient(packed: &Packed, q: &[f64], x: &[f64]) -> Vec<f64> {
 /// numerically positive definite.
 fn dense_step(
     p: &mut Mat<f64>,
-    packed: &Packed,
+    packed: &Quadratic,
     groups: &[NewtonGroup],
     norms: &[f64],
     held: &[bool],
@@ -297,7 +298,7 @@ fn dense_step(
 /// the path's 18); now every step is Newton's.
 fn iterate(
     p: &mut Mat<f64>,
-    packed: &Packed,
+    packed: &Quadratic,
     q: &[f64],
     groups: &[NewtonGroup],
     tol: f64,

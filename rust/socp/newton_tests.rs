@@ -108,7 +108,7 @@ fn the_minimiser_meets_the_optimality_conditions() {
         // x[12] is in no group: only the quadratic holds it.
         let (p, q, groups, _) = random(13, &specs(weight), seed);
         for (tol, bound) in [(1e-8, 1e-8), (1e-12, 1e-11)] {
-            let out = newton(&mut p.clone(), &q, &groups, tol, None, None).unwrap();
+            let out = newton(&mut p.clone(), &q, &groups, tol, None, None, None).unwrap();
             let (x, iterations) = solved(out).expect("Newton's method converges");
             let (_, grad) = value_and_gradient(&p, &q, &groups, &x);
             let worst = grad.amax();
@@ -125,13 +125,13 @@ fn the_minimiser_meets_the_optimality_conditions() {
 fn the_quadratic_is_given_back_as_it_came_and_a_second_call_gives_the_same() {
     let (mut p, q, groups, _) = random(13, &specs(0.05), 8);
     let before = p.clone();
-    let first = solved(newton(&mut p, &q, &groups, 1e-8, None, None).unwrap()).unwrap();
+    let first = solved(newton(&mut p, &q, &groups, 1e-8, None, None, None).unwrap()).unwrap();
     for j in 0..13 {
         for i in 0..13 {
             assert_eq!(p[(i, j)].to_bits(), before[(i, j)].to_bits(), "({i}, {j})");
         }
     }
-    let second = solved(newton(&mut p, &q, &groups, 1e-8, None, None).unwrap()).unwrap();
+    let second = solved(newton(&mut p, &q, &groups, 1e-8, None, None, None).unwrap()).unwrap();
     assert_eq!(first.1, second.1);
     assert!(first
         .0
@@ -144,9 +144,9 @@ fn the_quadratic_is_given_back_as_it_came_and_a_second_call_gives_the_same() {
 fn a_looser_tolerance_stops_earlier_at_an_answer_near_the_tight_one() {
     let (p, q, groups, _) = random(13, &specs(0.05), 2);
     let (tight, slow) =
-        solved(newton(&mut p.clone(), &q, &groups, 1e-14, None, None).unwrap()).unwrap();
+        solved(newton(&mut p.clone(), &q, &groups, 1e-14, None, None, None).unwrap()).unwrap();
     let (loose, fast) =
-        solved(newton(&mut p.clone(), &q, &groups, 1e-2, None, None).unwrap()).unwrap();
+        solved(newton(&mut p.clone(), &q, &groups, 1e-2, None, None, None).unwrap()).unwrap();
     assert!(fast < slow, "{fast} vs {slow} iterations");
     // One full step after a decrement of 1e-2: within about the decrement's square root.
     let diff = loose
@@ -227,7 +227,7 @@ fn the_minimiser_is_clarabels_to_its_accuracy() {
     for (seed, weight) in [(4, 0.05), (5, 0.1)] {
         let (p, q, groups, fixed) = random(13, &specs(weight), seed);
         let (x, _) =
-            solved(newton(&mut p.clone(), &q, &groups, 1e-8, None, None).unwrap()).unwrap();
+            solved(newton(&mut p.clone(), &q, &groups, 1e-8, None, None, None).unwrap()).unwrap();
         assert_clarabels(&p, &q, &groups, &x, &clarabels(&p, &q, &groups, &fixed));
     }
 }
@@ -240,7 +240,7 @@ fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
     let mut s = specs(0.1);
     s[0].weight = 50.0;
     let (p, q, groups, fixed) = random(13, &s, 6);
-    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None, None).unwrap();
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None, None, None).unwrap();
     let (x, iterations) = solved(out).expect("solved with the group held at zero");
     assert!(groups[0].norm(&x) < 1e-14);
     // Held once two cut steps were headed for its kink: 5 iterations
@@ -257,7 +257,7 @@ fn a_minimum_at_a_kink_is_found_with_the_group_held_there() {
     // A group that cannot be held (a fixed entry off zero) is named instead.
     let mut stuck = groups.clone();
     stuck[0].fixed_squares = 1e-14;
-    let named = newton(&mut p.clone(), &q, &stuck, 1e-8, None, None).unwrap();
+    let named = newton(&mut p.clone(), &q, &stuck, 1e-8, None, None, None).unwrap();
     assert!(matches!(named, Newton::Kink { group: 0, .. }), "{named:?}");
 }
 
@@ -274,7 +274,7 @@ fn a_group_at_zero_whose_minimum_is_not_there_is_let_go() {
         groups[2].norm(&x_ref) > 1e-3,
         "not a test: its minimum is at zero"
     );
-    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None, None).unwrap();
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, None, None, None).unwrap();
     let (x, iterations) = solved(out).expect("converges after letting go");
     assert_clarabels(&p, &q, &groups, &x, &x_ref);
     assert!(iterations <= 12, "{iterations}");
@@ -282,7 +282,7 @@ fn a_group_at_zero_whose_minimum_is_not_there_is_let_go() {
     // group 2 at zero (where a refuted check leaves them).
     let mut start = x_ref.clone();
     groups[2].hold(&mut start);
-    let out = newton(&mut p.clone(), &q, &groups, 1e-8, Some(start), None).unwrap();
+    let out = newton(&mut p.clone(), &q, &groups, 1e-8, Some(start), None, None).unwrap();
     let (warm, from_there) = solved(out).expect("converges from the start given");
     assert_clarabels(&p, &q, &groups, &warm, &x_ref);
     assert!(from_there <= iterations, "{from_there} > {iterations}");
@@ -292,7 +292,7 @@ fn a_group_at_zero_whose_minimum_is_not_there_is_let_go() {
 fn it_gives_up_on_a_quadratic_that_is_not_convex_and_on_nan() {
     let (p, q, groups, _) = random(13, &specs(0.1), 7);
     let negative = Mat::from_fn(13, 13, |i, j| if i == j { -1.0 } else { 0.0 });
-    let indefinite = newton(&mut negative.clone(), &q, &groups, 1e-8, None, None).unwrap();
+    let indefinite = newton(&mut negative.clone(), &q, &groups, 1e-8, None, None, None).unwrap();
     assert!(
         matches!(indefinite, Newton::GaveUp { iterations: 1 }),
         "P = -I: {indefinite:?}"
@@ -300,7 +300,7 @@ fn it_gives_up_on_a_quadratic_that_is_not_convex_and_on_nan() {
     // A non-finite q: no answer rather than NaN.
     let mut bad = q.clone();
     bad[3] = f64::NAN;
-    let nan = newton(&mut p.clone(), &bad, &groups, 1e-8, None, None).unwrap();
+    let nan = newton(&mut p.clone(), &bad, &groups, 1e-8, None, None, None).unwrap();
     assert!(matches!(nan, Newton::GaveUp { .. }), "NaN in q");
 }
 
@@ -349,7 +349,7 @@ fn the_line_search_tames_a_step_that_would_run_away() {
         weight: 1.0,
     }];
     let (x, iterations) =
-        solved(newton(&mut p.clone(), &[0.0], &groups, 1e-12, None, None).unwrap())
+        solved(newton(&mut p.clone(), &[0.0], &groups, 1e-12, None, None, None).unwrap())
             .expect("converges with cut steps");
     let (_, grad) = value_and_gradient(&p, &[0.0], &groups, &x);
     assert!(grad.amax() < 1e-11, "{:.2e}", grad.amax());
@@ -381,7 +381,7 @@ fn release_moves_a_group_to_the_minimum_of_f_on_its_steepest_ray() {
     // it, the other entries untouched.
     let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
     groups[2].weight = 0.01;
-    let packed = Packed::of(&p).unwrap();
+    let packed = Quadratic::of(&p, None).unwrap();
     let mut x = vec![0.0; 13];
     groups[2].hold(&mut x);
     let quad = quad_gradient(&packed, &q, &x);
@@ -442,13 +442,24 @@ fn the_stopping_rule_is_relative_to_the_size_of_f() {
     let (p_small, q_small, g_small) = scaled(10.0);
     let (p_big, q_big, g_big) = scaled(1e7);
     for tol in [1e-2, 1e-8] {
-        let (x, its) =
-            solved(newton(&mut p_small.clone(), &q_small, &g_small, tol, None, None).unwrap())
-                .unwrap();
+        let (x, its) = solved(
+            newton(
+                &mut p_small.clone(),
+                &q_small,
+                &g_small,
+                tol,
+                None,
+                None,
+                None,
+            )
+            .unwrap(),
+        )
+        .unwrap();
         let (f, _) = value_and_gradient(&p_small, &q_small, &g_small, &x);
         assert!(f.abs() > 1.0, "not a test of the relative rule: {f}");
         let (x_big, its_big) =
-            solved(newton(&mut p_big.clone(), &q_big, &g_big, tol, None, None).unwrap()).unwrap();
+            solved(newton(&mut p_big.clone(), &q_big, &g_big, tol, None, None, None).unwrap())
+                .unwrap();
         assert_eq!(its, its_big, "tol {tol}");
         let diff = x
             .iter()
@@ -456,5 +467,57 @@ fn the_stopping_rule_is_relative_to_the_size_of_f() {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(diff < 1e-9, "tol {tol}: {diff:.2e}");
+    }
+}
+
+#[test]
+fn a_schur_term_left_to_the_products_is_the_quadratic_less_w_t_w() {
+    // P - W^T W formed (as the dense route does) against W left to the
+    // products (the factored route): the same products, the same lower
+    // triangle for a dense Newton step, and the same minimum.
+    let (p, q, groups, _) = random(13, &specs(0.1), 7);
+    let mut rng = Lcg(11);
+    let w = Mat::from_fn(5, 13, |_, _| 0.1 * rng.next_f64());
+    let mut formed = p.clone();
+    for j in 0..13 {
+        for i in 0..13 {
+            let wtw: f64 = (0..5).map(|k| w[(k, i)] * w[(k, j)]).sum();
+            formed[(i, j)] -= wtw;
+        }
+    }
+    let lazy = Quadratic::of(&p, Some(w.as_ref())).unwrap();
+    let x: Vec<f64> = (0..13).map(|k| (0.61 * k as f64).cos()).collect();
+    let got = lazy.times(&x);
+    for (i, g) in got.iter().enumerate() {
+        let want: f64 = (0..13).map(|j| formed[(i, j)] * x[j]).sum();
+        assert!((g - want).abs() <= 1e-14 * 13.0, "{i}: {g} vs {want}");
+    }
+    let mut lower = Mat::zeros(13, 13);
+    lazy.fill_lower(&mut lower);
+    for j in 0..13 {
+        for i in j..13 {
+            assert!(
+                (lower[(i, j)] - formed[(i, j)]).abs() <= 1e-14,
+                "({i}, {j})"
+            );
+        }
+    }
+    let (a, _) = solved(
+        newton(
+            &mut p.clone(),
+            &q,
+            &groups,
+            1e-12,
+            None,
+            None,
+            Some(w.as_ref()),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let (b, _) =
+        solved(newton(&mut formed.clone(), &q, &groups, 1e-12, None, None, None).unwrap()).unwrap();
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-9 * (1.0 + y.abs()), "{x} vs {y}");
     }
 }

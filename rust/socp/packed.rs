@@ -2,9 +2,11 @@
 //! kept packed: half a dense matrix, so that the Hessians can be formed
 //! and factored in the caller's matrix itself.
 
+use crate::dense::{par_for, product};
 use crate::error::Result;
 use crate::memory::try_grow;
-use faer::Mat;
+use faer::linalg::matmul::triangular::{matmul, BlockStructure};
+use faer::{Accum, Mat, MatMut, MatRef};
 
 /// The upper triangle of a symmetric matrix, column by column (the
 /// column `j` holds rows `0..=j`).
@@ -78,6 +80,72 @@ impl Packed {
         }
         out
     }
+}
+
+/// The quadratic of a Newton cone step: `P` packed, less `W^T W` where the
+/// caller left the Schur complement of the parameters outside every group
+/// to the products (`W` `nu x nk`). On the factored route the solves do
+/// not read `P`, and `P x - W^T (W x)` costs `4 nu nk` against the
+/// `nu nk^2` of forming `P - W^T W` once (at n = 16, 0.8 M against 540 M
+/// multiplications a cone step).
+pub(super) struct Quadratic<'a> {
+    packed: Packed,
+    schur: Option<MatRef<'a, f64>>,
+}
+
+impl<'a> Quadratic<'a> {
+    /// `P` (the upper triangle of `p`), less `W^T W` when `schur` is `W`.
+    pub(super) fn of(p: &Mat<f64>, schur: Option<MatRef<'a, f64>>) -> Result<Self> {
+        Ok(Quadratic {
+            packed: Packed::of(p)?,
+            schur,
+        })
+    }
+
+    /// Write `P` (without the Schur term) back into `p`, both triangles.
+    pub(super) fn fill(&self, p: &mut Mat<f64>) {
+        self.packed.fill(p);
+    }
+
+    /// Write the lower triangle of the quadratic into `p`.
+    pub(super) fn fill_lower(&self, p: &mut Mat<f64>) {
+        self.packed.fill_lower(p);
+        if let Some(w) = self.schur {
+            subtract_gram(p.as_mut(), w, BlockStructure::TriangularLower);
+        }
+    }
+
+    /// The quadratic times `x`.
+    pub(super) fn times(&self, x: &[f64]) -> Vec<f64> {
+        let mut out = self.packed.times(x);
+        if let Some(w) = self.schur {
+            let xm = MatRef::from_column_major_slice(x, x.len(), 1);
+            let wx = product(w, xm);
+            let wtwx = product(w.transpose(), wx.as_ref());
+            for (o, v) in out.iter_mut().zip(wtwx.col_as_slice(0)) {
+                *o -= v;
+            }
+        }
+        out
+    }
+}
+
+/// `P -= W^T W` on one triangle of `p` (`structure`), on as many threads as
+/// the size pays for (every entry one dot product of two columns of `W`,
+/// summed in one order on any number of threads).
+pub(super) fn subtract_gram(p: MatMut<'_, f64>, w: MatRef<'_, f64>, structure: BlockStructure) {
+    let (nu, nk) = w.shape();
+    matmul(
+        p,
+        structure,
+        Accum::Add,
+        w.transpose(),
+        BlockStructure::Rectangular,
+        w,
+        BlockStructure::Rectangular,
+        -1.0,
+        par_for((nk * nk * nu) as f64),
+    );
 }
 
 #[cfg(test)]

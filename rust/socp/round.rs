@@ -5,13 +5,14 @@
 
 use super::factored::FactoredHessian;
 use super::newton::{newton, Newton};
+use super::packed::subtract_gram;
 use super::{ConeGroup, ConeProblem, ConeSolver};
-use crate::dense::{cholesky, lower_solve, lower_transpose_solve, par_for, product};
+use crate::dense::{cholesky, lower_solve, lower_transpose_solve, product};
 use crate::error::Result;
 use crate::memory::try_mat;
 use clarabel::solver::SolverStatus;
-use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-use faer::{Accum, Mat};
+use faer::linalg::matmul::triangular::BlockStructure;
+use faer::Mat;
 
 /// How a round solves its program.
 pub(super) enum Method {
@@ -106,6 +107,17 @@ impl ConeProblem<'_> {
         let mut p_red = try_mat(nk, nk, |a, b| p_full(grouped[a], grouped[b]), dense)?;
         let mut q_red: Vec<f64> = grouped.iter().map(|&p| q_full(p)).collect();
         // Elimination: e_U = -L^-T (v + W e_G) with P_UU = L L^T, W = L^-1 P_UG, v = L^-1 q_U.
+        // Through every point's factor where that is cheaper (no pinned
+        // curvature: it is not of the factors' form). That route solves
+        // without `P`: the Schur complement of the others is left to the
+        // products of the quadratic, and formed only should the step fall
+        // back to the cone solver.
+        let factors = match (&method, &self.gn.factors) {
+            (Method::Newton(_), Some(f)) if ng > 0 && extra.is_none() && f.newton_worth_it(nk) => {
+                Some(f)
+            }
+            _ => None,
+        };
         let mut elimination = None;
         if !others.is_empty() {
             let nu = others.len();
@@ -121,17 +133,9 @@ impl ConeProblem<'_> {
                 // The upper triangle only, half the flops: what Newton's
                 // method (its packed P) and Clarabel's program read; the
                 // lower triangle keeps P_GG's values.
-                matmul(
-                    p_red.as_mut(),
-                    BlockStructure::TriangularUpper,
-                    Accum::Add,
-                    w.transpose(),
-                    BlockStructure::Rectangular,
-                    &w,
-                    BlockStructure::Rectangular,
-                    -1.0,
-                    par_for((nk * nk * nu) as f64),
-                );
+                if factors.is_none() {
+                    subtract_gram(p_red.as_mut(), w.as_ref(), BlockStructure::TriangularUpper);
+                }
                 let wtv = product(w.transpose(), v.as_ref());
                 q_red
                     .iter_mut()
@@ -144,14 +148,12 @@ impl ConeProblem<'_> {
             Method::Newton(start) if ng > 0 => {
                 let groups = self.newton_groups(&open, scale);
                 let x0 = start.map(|e| grouped.iter().map(|&p| e[p]).collect());
-                // Through every point's factor where that is cheaper (no
-                // pinned curvature: it is not of the factors' form).
-                let factored = match &self.gn.factors {
-                    Some(f) if extra.is_none() && f.newton_worth_it(nk) => Some(
-                        FactoredHessian::new(f, &grouped, &others, scale, self.diag, mu, m_res),
-                    ),
-                    _ => None,
-                };
+                let factored = factors.map(|f| {
+                    FactoredHessian::new(f, &grouped, &others, scale, self.diag, mu, m_res)
+                });
+                let schur = factors
+                    .and(elimination.as_ref())
+                    .map(|(_, w, _)| w.as_ref());
                 newton(
                     &mut p_red,
                     &q_red,
@@ -159,6 +161,7 @@ impl ConeProblem<'_> {
                     cache.tol(),
                     x0,
                     factored.as_ref(),
+                    schur.filter(|_| nk > 0),
                 )?
             }
             _ => Newton::GaveUp { iterations: 0 },
@@ -184,6 +187,9 @@ impl ConeProblem<'_> {
                 Newton::GaveUp { iterations } => iterations,
                 _ => 0,
             };
+            if let (Some(_), Some((_, w, _))) = (factors, &elimination) {
+                subtract_gram(p_red.as_mut(), w.as_ref(), BlockStructure::TriangularUpper);
+            }
             let program = self.program(&open, scale, &p_red, q_red)?;
             drop(p_red);
             let sol = match cache.run(&program)? {
