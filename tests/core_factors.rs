@@ -193,3 +193,46 @@ fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
     assert_eq!(zeroed[1..3], [0, 0], "{zeroed:?}");
     assert!(zeroed[3..].iter().all(|&z| z > 0), "{zeroed:?}");
 }
+
+#[test]
+fn a_factored_cone_step_that_newton_gives_up_on_is_the_cone_solvers_on_the_whole_quadratic() {
+    // gamma 1e-3, mu 1e-10: on the factored route Newton's method gives
+    // up and Clarabel takes the program, whose quadratic needs the Schur
+    // complement the factored route left to its products; its step is
+    // the dense route's (solved by Newton's method) to the solvers'
+    // tolerances. Without the complement it is 40 % off.
+    let (p, start) = problem();
+    let free = FreeSet::all(start.len());
+    let gn = p.gauss_newton(&start, &free).unwrap();
+    let mut dense = gn.clone();
+    dense.factors = None;
+    let diag = marquardt_diagonal(&gn);
+    let gamma = 1e-3;
+    let settings = L21Settings {
+        gamma,
+        ..L21Settings::default()
+    };
+    let groups = cone_groups(p.shape(), &free, &[1.0; 3], &start, &settings).unwrap();
+    let cone = |gn| ConeProblem {
+        gn,
+        diag: &diag,
+        theta: &start,
+        groups: &groups,
+        gamma,
+        n_residuals: p.n_residuals() as f64,
+        pinned: None,
+        newton: true,
+    };
+    let a = cone(&gn).solve(1e-10, &mut ConeSolver::new(1e-10)).unwrap();
+    let b = cone(&dense)
+        .solve(1e-10, &mut ConeSolver::new(1e-10))
+        .unwrap();
+    assert!(
+        !a.status.contains("Newton"),
+        "{}: not the fallback",
+        a.status
+    );
+    assert!(b.status.contains("Newton"), "{}", b.status);
+    let err = relative_gap(&a.step.unwrap(), &b.step.unwrap());
+    assert!(err < 1e-4, "{err:e}");
+}
