@@ -190,4 +190,30 @@ mod tests {
             assert!((yi - want).abs() <= 1e-12 * want.abs(), "{i}");
         }
     }
+
+    /// `P - W^T W` formed (the dense route) against `W` left to the
+    /// products (the factored route): the same products, and the same
+    /// lower triangle for a dense Newton step.
+    #[test]
+    fn a_schur_term_left_to_the_products_is_the_quadratic_less_w_t_w() {
+        let p = symmetric(13);
+        let w = Mat::from_fn(5, 13, |k, i| ((3 * k + 5 * i) as f64 * 0.37).sin());
+        let formed = Mat::from_fn(13, 13, |i, j| {
+            p[(i, j)] - (0..5).map(|k| w[(k, i)] * w[(k, j)]).sum::<f64>()
+        });
+        let lazy = Quadratic::of(&p, Some(w.as_ref())).unwrap();
+        let x: Vec<f64> = (0..13).map(|k| (0.61 * k as f64).cos()).collect();
+        for (i, got) in lazy.times(&x).iter().enumerate() {
+            let want: f64 = (0..13).map(|j| formed[(i, j)] * x[j]).sum();
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "{i}");
+        }
+        let mut lower = Mat::from_fn(13, 13, |_, _| f64::NAN);
+        lazy.fill_lower(&mut lower);
+        for j in 0..13 {
+            for i in j..13 {
+                let want = formed[(i, j)];
+                assert!((lower[(i, j)] - want).abs() <= 1e-12 * want.abs().max(1.0));
+            }
+        }
+    }
 }
