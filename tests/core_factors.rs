@@ -6,7 +6,7 @@
 
 use lpvid::l21::cone_groups;
 use lpvid::lm::{lm_step, marquardt_diagonal, LmSystem};
-use lpvid::socp::{ConeProblem, ConeSolver};
+use lpvid::socp::{ConeProblem, ConeSolver, ConeStep};
 use lpvid::testing::{on_threads, relative_gap, Lcg};
 use lpvid::{
     frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
@@ -144,8 +144,9 @@ fn a_factored_fit_takes_the_same_steps_on_one_thread_and_on_two() {
     assert_eq!(one.theta, two.theta);
 }
 
-#[test]
-fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
+/// The factored and the dense route's cone steps from the start, damping
+/// `mu`, at `gamma`: `(factored, dense)`.
+fn cone_steps(gamma: f64, mus: &[f64]) -> Vec<(ConeStep, ConeStep)> {
     let (p, start) = problem();
     let free = FreeSet::all(start.len());
     let gn = p.gauss_newton(&start, &free).unwrap();
@@ -153,30 +154,38 @@ fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
     let mut dense = gn.clone();
     dense.factors = None;
     let diag = marquardt_diagonal(&gn);
-    let m = p.n_residuals() as f64;
-    // A small gamma keeps the groups open (972 grouped parameters with
-    // mu >= 1e-4: the factored Newton systems); a larger one takes some to
-    // zero (the dense system of the rest).
-    let mut zeroed = Vec::new();
-    for gamma in [1e-3, 1.0] {
-        let settings = L21Settings {
-            gamma,
-            ..L21Settings::default()
-        };
-        let groups = cone_groups(p.shape(), &free, &[1.0; 3], &start, &settings).unwrap();
-        let cone = |gn| ConeProblem {
+    let settings = L21Settings {
+        gamma,
+        ..L21Settings::default()
+    };
+    let groups = cone_groups(p.shape(), &free, &[1.0; 3], &start, &settings).unwrap();
+    let cone = |gn, mu| {
+        let problem = ConeProblem {
             gn,
             diag: &diag,
             theta: &start,
             groups: &groups,
             gamma,
-            n_residuals: m,
+            n_residuals: p.n_residuals() as f64,
             pinned: None,
             newton: true,
         };
-        for mu in [1e-8, 1e-4, 1e-2] {
-            let a = cone(&gn).solve(mu, &mut ConeSolver::new(1e-10)).unwrap();
-            let b = cone(&dense).solve(mu, &mut ConeSolver::new(1e-10)).unwrap();
+        problem.solve(mu, &mut ConeSolver::new(1e-10)).unwrap()
+    };
+    mus.iter()
+        .map(|&mu| (cone(&gn, mu), cone(&dense, mu)))
+        .collect()
+}
+
+#[test]
+fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
+    // A small gamma keeps the groups open (972 grouped parameters with
+    // mu >= 1e-4: the factored Newton systems); a larger one takes some to
+    // zero (the dense system of the rest).
+    let mut zeroed = Vec::new();
+    for gamma in [1e-3, 1.0] {
+        let mus = [1e-8, 1e-4, 1e-2];
+        for ((a, b), mu) in cone_steps(gamma, &mus).into_iter().zip(mus) {
             assert!(a.status.contains("Newton") && b.status.contains("Newton"));
             assert_eq!(a.iterations, b.iterations, "gamma {gamma} mu {mu}");
             assert_eq!(a.zeroed, b.zeroed, "gamma {gamma} mu {mu}");
@@ -201,32 +210,7 @@ fn a_factored_cone_step_that_newton_gives_up_on_is_the_cone_solvers_on_the_whole
     // complement the factored route left to its products; its step is
     // the dense route's (solved by Newton's method) to the solvers'
     // tolerances. Without the complement it is 40 % off.
-    let (p, start) = problem();
-    let free = FreeSet::all(start.len());
-    let gn = p.gauss_newton(&start, &free).unwrap();
-    let mut dense = gn.clone();
-    dense.factors = None;
-    let diag = marquardt_diagonal(&gn);
-    let gamma = 1e-3;
-    let settings = L21Settings {
-        gamma,
-        ..L21Settings::default()
-    };
-    let groups = cone_groups(p.shape(), &free, &[1.0; 3], &start, &settings).unwrap();
-    let cone = |gn| ConeProblem {
-        gn,
-        diag: &diag,
-        theta: &start,
-        groups: &groups,
-        gamma,
-        n_residuals: p.n_residuals() as f64,
-        pinned: None,
-        newton: true,
-    };
-    let a = cone(&gn).solve(1e-10, &mut ConeSolver::new(1e-10)).unwrap();
-    let b = cone(&dense)
-        .solve(1e-10, &mut ConeSolver::new(1e-10))
-        .unwrap();
+    let (a, b) = cone_steps(1e-3, &[1e-10]).remove(0);
     assert!(
         !a.status.contains("Newton"),
         "{}: not the fallback",
