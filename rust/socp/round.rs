@@ -106,7 +106,6 @@ impl ConeProblem<'_> {
         let dense = "the dense block of the cone step";
         let mut p_red = try_mat(nk, nk, |a, b| p_full(grouped[a], grouped[b]), dense)?;
         let mut q_red: Vec<f64> = grouped.iter().map(|&p| q_full(p)).collect();
-        // Elimination: e_U = -L^-T (v + W e_G) with P_UU = L L^T, W = L^-1 P_UG, v = L^-1 q_U.
         // Through every point's factor where that is cheaper (no pinned
         // curvature: it is not of the factors' form). That route solves
         // without `P`: the Schur complement of the others is left to the
@@ -118,6 +117,7 @@ impl ConeProblem<'_> {
             }
             _ => None,
         };
+        // Elimination: e_U = -L^-T (v + W e_G) with P_UU = L L^T, W = L^-1 P_UG, v = L^-1 q_U.
         let mut elimination = None;
         if !others.is_empty() {
             let nu = others.len();
