@@ -171,10 +171,10 @@ pub(super) fn newton(
     factored: Option<&FactoredHessian>,
     schur: Option<MatRef<'_, f64>>,
 ) -> Result<Newton> {
-    let packed = Quadratic::of(p, schur)?;
+    let quadratic = Quadratic::of(p, schur)?;
     let x = start.unwrap_or_else(|| vec![0.0; q.len()]);
-    let out = iterate(p, &packed, q, groups, tol, x, factored);
-    packed.fill(p);
+    let out = iterate(p, &quadratic, q, groups, tol, x, factored);
+    quadratic.fill(p);
     out
 }
 
@@ -217,14 +217,14 @@ impl NewtonGroup {
     /// curvature along it against the slope `||w|| (c_g - ||w||)`).
     /// Newton's method cannot start at a kink; from this point it converges
     /// in a few iterations.
-    fn release(&self, packed: &Quadratic, quad_grad: &[f64], x: &mut [f64]) {
+    fn release(&self, quadratic: &Quadratic, quad_grad: &[f64], x: &mut [f64]) {
         let w = self.w(quad_grad);
         let size = dot(&w, &w).sqrt();
         let mut v = vec![0.0; x.len()];
         for ((slot, a), wk) in v[self.range()].iter_mut().zip(&self.alpha).zip(&w) {
             *slot = -wk / a;
         }
-        let curvature = dot(&v, &packed.times(&v));
+        let curvature = dot(&v, &quadratic.times(&v));
         let t = (size - self.weight) * size / curvature;
         if t.is_finite() && t > 0.0 {
             for (xk, vk) in x[self.range()].iter_mut().zip(&v[self.range()]) {
@@ -235,8 +235,13 @@ impl NewtonGroup {
 }
 
 /// `P x + q`.
-fn quad_gradient(packed: &Quadratic, q: &[f64], x: &[f64]) -> Vec<f64> {
-    packed.times(x).iter().zip(q).map(|(a, b)| a + b).collect()
+fn quad_gradient(quadratic: &Quadratic, q: &[f64], x: &[f64]) -> Vec<f64> {
+    quadratic
+        .times(x)
+        .iter()
+        .zip(q)
+        .map(|(a, b)| a + b)
+        .collect()
 }
 
 /// The Newton step `-H^-1 grad` by the dense Hessian, formed and factored
@@ -245,7 +250,7 @@ fn quad_gradient(packed: &Quadratic, q: &[f64], x: &[f64]) -> Vec<f64> {
 /// numerically positive definite.
 fn dense_step(
     p: &mut Mat<f64>,
-    packed: &Quadratic,
+    quadratic: &Quadratic,
     groups: &[NewtonGroup],
     norms: &[f64],
     held: &[bool],
@@ -253,7 +258,7 @@ fn dense_step(
     grad: &[f64],
 ) -> Result<Option<Vec<f64>>> {
     let n = grad.len();
-    packed.fill_lower(p);
+    quadratic.fill_lower(p);
     for ((g, &s), _) in groups.iter().zip(norms).zip(held).filter(|(_, &h)| !h) {
         let z: Vec<f64> = g.z(x).collect();
         let c = g.weight / s;
@@ -298,7 +303,7 @@ fn dense_step(
 /// the path's 18); now every step is Newton's.
 fn iterate(
     p: &mut Mat<f64>,
-    packed: &Quadratic,
+    quadratic: &Quadratic,
     q: &[f64],
     groups: &[NewtonGroup],
     tol: f64,
@@ -328,7 +333,7 @@ fn iterate(
             }
         }
         if std::mem::take(&mut check) {
-            let quad_grad = quad_gradient(packed, q, &x);
+            let quad_grad = quad_gradient(quadratic, q, &x);
             for (k, g) in groups.iter().enumerate() {
                 if held[k] && !g.zero_is_optimal(&quad_grad) {
                     if released[k] == RELEASES {
@@ -336,7 +341,7 @@ fn iterate(
                     }
                     released[k] += 1;
                     held[k] = false;
-                    g.release(packed, &quad_grad, &mut x);
+                    g.release(quadratic, &quad_grad, &mut x);
                 }
             }
         }
@@ -344,7 +349,7 @@ fn iterate(
         if norms.iter().any(|s| !s.is_finite()) {
             return Ok(gave_up);
         }
-        let px = packed.times(&x);
+        let px = quadratic.times(&x);
         let quad_grad: Vec<f64> = px.iter().zip(q).map(|(a, b)| a + b).collect();
         let mut grad = quad_grad.clone();
         for ((g, &s), _) in groups.iter().zip(&norms).zip(&held).filter(|(_, &h)| !h) {
@@ -362,7 +367,7 @@ fn iterate(
         };
         let dx = match prepared {
             Some(solver) => solver.solve(&grad.iter().map(|g| -g).collect::<Vec<_>>()),
-            None => match dense_step(p, packed, groups, &norms, &held, &x, &grad)? {
+            None => match dense_step(p, quadratic, groups, &norms, &held, &x, &grad)? {
                 Some(dx) => dx,
                 None => return Ok(gave_up),
             },
@@ -378,7 +383,7 @@ fn iterate(
             // Within reach of the minimum: the full step, quadratically
             // closer; done unless a held group is to be let go.
             x.iter_mut().zip(&dx).for_each(|(x, d)| *x += d);
-            let quad_grad = quad_gradient(packed, q, &x);
+            let quad_grad = quad_gradient(quadratic, q, &x);
             let optimal = |(g, &h): (&NewtonGroup, &bool)| !h || g.zero_is_optimal(&quad_grad);
             if groups.iter().zip(&held).all(optimal) {
                 return Ok(Newton::Solved {
@@ -396,7 +401,7 @@ fn iterate(
             groups,
             value,
             slope: dot(&quad_grad, &dx),
-            curvature: dot(&dx, &packed.times(&dx)),
+            curvature: dot(&dx, &quadratic.times(&dx)),
         };
         let mut t = 1.0;
         while line.at(t) > f - ARMIJO * t * decrement {

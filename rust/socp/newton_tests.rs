@@ -381,14 +381,14 @@ fn release_moves_a_group_to_the_minimum_of_f_on_its_steepest_ray() {
     // it, the other entries untouched.
     let (p, q, mut groups, _) = random(13, &specs(0.1), 7);
     groups[2].weight = 0.01;
-    let packed = Quadratic::of(&p, None).unwrap();
+    let quadratic = Quadratic::of(&p, None).unwrap();
     let mut x = vec![0.0; 13];
     groups[2].hold(&mut x);
-    let quad = quad_gradient(&packed, &q, &x);
+    let quad = quad_gradient(&quadratic, &q, &x);
     assert!(!groups[2].zero_is_optimal(&quad));
     let w = groups[2].w(&quad);
     let mut moved = x.clone();
-    groups[2].release(&packed, &quad, &mut moved);
+    groups[2].release(&quadratic, &quad, &mut moved);
     let z: Vec<f64> = groups[2].z(&moved).collect();
     // z = -t w: parallel and opposite, the same t for every entry.
     let t = -z[0] / w[0];
