@@ -76,6 +76,53 @@ pub fn scratch_len(p: usize, k: usize) -> usize {
 /// another order of the samples than the core's kernels.
 pub const FAER_ENTRIES: usize = 256;
 
+/// The samples a product runs over, in order: `count` runs of `len`
+/// consecutive samples, run `i` from sample `first + i step`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Samples {
+    /// The first sample of the first run.
+    pub first: usize,
+    /// From the start of one run to the next.
+    pub step: usize,
+    /// Samples per run.
+    pub len: usize,
+    /// Runs.
+    pub count: usize,
+}
+
+impl Samples {
+    /// The first `k` samples.
+    pub fn first(k: usize) -> Self {
+        Samples {
+            first: 0,
+            step: k,
+            len: k,
+            count: 1,
+        }
+    }
+
+    /// How many samples.
+    pub fn total(&self) -> usize {
+        self.len * self.count
+    }
+
+    /// One past the last sample (0 when there is none).
+    fn end(&self) -> usize {
+        match self.total() {
+            0 => 0,
+            _ => self.first + (self.count - 1) * self.step + self.len,
+        }
+    }
+
+    /// Every sample, in order.
+    fn iter(self) -> impl Iterator<Item = usize> {
+        (0..self.count).flat_map(move |i| {
+            let start = self.first + i * self.step;
+            start..start + self.len
+        })
+    }
+}
+
 /// `C += V U^T` over the first `k` samples: `V` is `m x stride` row-major
 /// (`v[i * stride + s]`), `U` `p x stride`, `C` `m x p`; on faer when `C`
 /// has at most [`FAER_ENTRIES`] entries, else on the widest kernel the
@@ -96,22 +143,25 @@ pub fn gram_product(
         matmul(c, Accum::Add, vm, um.transpose(), 1.0, Par::Seq);
         return;
     }
-    gram_product_with(Kernel::best(), c, v, u, stride, k, scratch);
+    gram_product_with(Kernel::best(), c, v, u, stride, Samples::first(k), scratch);
 }
 
 /// [`gram_product`] on a given kernel (the plain loop when the processor
-/// does not run it).
+/// does not run it), over the given samples: each entry's sum runs over
+/// them in their order, so leaving out samples whose products are zero
+/// (`0 y` for finite `y`) leaves every entry's bits as they were.
 pub fn gram_product_with(
     kernel: Kernel,
     mut c: MatMut<'_, f64>,
     v: &[f64],
     u: &[f64],
     stride: usize,
-    k: usize,
+    samples: Samples,
     scratch: &mut [f64],
 ) {
     let (m, p) = (c.nrows(), c.ncols());
-    assert!(k <= stride, "k {k} past the stride {stride}");
+    let k = samples.total();
+    assert!(samples.end() <= stride, "samples past the stride {stride}");
     assert!(v.len() >= m * stride && u.len() >= p * stride);
     assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
     if m == 0 || p == 0 || k == 0 {
@@ -123,7 +173,7 @@ pub fn gram_product_with(
         Kernel::Plain
     };
     let (mr, nr) = match kernel {
-        Kernel::Plain => return plain(c, v, u, stride, k),
+        Kernel::Plain => return plain(c, v, u, stride, samples),
         Kernel::Avx2 => (MR_256, NR_256),
         Kernel::Avx512 => (MR_512, NR_512),
     };
@@ -133,14 +183,14 @@ pub fn gram_product_with(
     let (up, rest) = rest.split_at_mut(p.div_ceil(nr) * nr * k);
     let block = &mut rest[..mr * nr];
     for (jp, panel) in up.chunks_mut(nr * k).enumerate() {
-        pack(panel, u, stride, k, jp * nr, nr, p);
+        pack(panel, u, stride, samples, jp * nr, nr, p);
     }
     // Whole blocks of a C with contiguous columns are added to in place.
     let ldc = usize::try_from(c.col_stride())
         .ok()
         .filter(|_| c.row_stride() == 1);
     for i0 in (0..m).step_by(mr) {
-        pack(vp, v, stride, k, i0, mr, m);
+        pack(vp, v, stride, samples, i0, mr, m);
         for (jp, panel) in up.chunks(nr * k).enumerate() {
             let j0 = jp * nr;
             let whole = i0 + mr <= m && j0 + nr <= p;
@@ -179,12 +229,38 @@ pub fn gram_product_with(
     }
 }
 
+/// Rows `r0..r0 + width` of a row-major `rows x stride` matrix at the
+/// given samples, sample by sample (run after run; [`pack_run`]).
+fn pack(
+    panel: &mut [f64],
+    x: &[f64],
+    stride: usize,
+    samples: Samples,
+    r0: usize,
+    width: usize,
+    rows: usize,
+) {
+    let len = samples.len;
+    for i in 0..samples.count {
+        let from = samples.first + i * samples.step;
+        pack_run(
+            &mut panel[i * len * width..],
+            &x[from..],
+            stride,
+            len,
+            r0,
+            width,
+            rows,
+        );
+    }
+}
+
 /// Rows `r0..r0 + width` of a row-major `rows x stride` matrix, sample by
 /// sample: `panel[s * width + q] = x[(r0 + q) * stride + s]`, zero past
 /// `rows`. Where the processor runs AVX2 (every one whose kernels pack),
 /// four rows by four samples at a time are transposed in registers: a copy
 /// either way, the same panels.
-fn pack(
+fn pack_run(
     panel: &mut [f64],
     x: &[f64],
     stride: usize,
@@ -227,15 +303,15 @@ fn pack(
 }
 
 /// The plain loop, entry by entry.
-fn plain(mut c: MatMut<'_, f64>, v: &[f64], u: &[f64], stride: usize, k: usize) {
+fn plain(mut c: MatMut<'_, f64>, v: &[f64], u: &[f64], stride: usize, samples: Samples) {
     let (m, p) = (c.nrows(), c.ncols());
     for j in 0..p {
-        let uj = &u[j * stride..j * stride + k];
+        let uj = &u[j * stride..(j + 1) * stride];
         for i in 0..m {
-            let vi = &v[i * stride..i * stride + k];
+            let vi = &v[i * stride..(i + 1) * stride];
             let mut acc = 0.0f64;
-            for (a, b) in vi.iter().zip(uj) {
-                acc = a.mul_add(*b, acc);
+            for s in samples.iter() {
+                acc = vi[s].mul_add(uj[s], acc);
             }
             c[(i, j)] += acc;
         }
@@ -384,11 +460,12 @@ mod tests {
         for (m, p, stride, k) in [(1, 1, 1, 1), (17, 13, 40, 37), (35, 26, 9, 9), (8, 6, 5, 0)] {
             let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
             let mut want = start(m, p);
-            plain(want.as_mut(), &v, &u, stride, k);
+            plain(want.as_mut(), &v, &u, stride, Samples::first(k));
             for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
                 let mut got = start(m, p);
                 let mut scratch = vec![f64::NAN; scratch_len(p, k)];
-                gram_product_with(kernel, got.as_mut(), &v, &u, stride, k, &mut scratch);
+                let samples = Samples::first(k);
+                gram_product_with(kernel, got.as_mut(), &v, &u, stride, samples, &mut scratch);
                 for j in 0..p {
                     for i in 0..m {
                         assert_eq!(
@@ -436,11 +513,58 @@ mod tests {
             &v1,
             &u1,
             2,
-            2,
+            Samples::first(2),
             &mut vec![0.0; scratch_len(1, 2)],
         );
         assert_eq!(c[(0, 0)], x.mul_add(x, -(x * x)));
         assert_ne!(c[(0, 0)], 0.0);
+    }
+
+    #[test]
+    fn a_product_over_runs_of_samples_leaves_out_only_their_zero_products() {
+        // U's rows zero off every third run of four samples (as a rank-one
+        // side's entries are off its own output): the product over that
+        // run alone has the whole product's bits on every kernel; over
+        // other runs, or with a run's zero sample filled in, it does not.
+        let (m, p, stride) = (37, 29, 96);
+        let runs = |first| Samples {
+            first,
+            step: 12,
+            len: 4,
+            count: 8,
+        };
+        let v = filled(m, stride, 0.4);
+        let mut u = filled(p, stride, 1.1);
+        for row in u.chunks_mut(stride) {
+            for (s, x) in row.iter_mut().enumerate() {
+                if !runs(4).iter().any(|t| t == s) {
+                    *x = if s % 2 == 0 { 0.0 } else { -0.0 };
+                }
+            }
+        }
+        let bits = |x: &Mat<f64>| -> Vec<u64> {
+            (0..p)
+                .flat_map(|j| (0..m).map(move |i| (i, j)))
+                .map(|(i, j)| x[(i, j)].to_bits())
+                .collect()
+        };
+        let mut whole = start(m, p);
+        plain(whole.as_mut(), &v, &u, stride, Samples::first(stride));
+        for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
+            let product = |u: &[f64], samples: Samples| {
+                let mut got = start(m, p);
+                let mut scratch = vec![f64::NAN; scratch_len(p, samples.total())];
+                gram_product_with(kernel, got.as_mut(), &v, u, stride, samples, &mut scratch);
+                bits(&got)
+            };
+            assert_eq!(product(&u, runs(4)), bits(&whole), "{kernel:?}");
+            assert_ne!(product(&u, runs(0)), bits(&whole), "{kernel:?}");
+            let mut one_more = u.clone();
+            one_more[2] = 0.5;
+            let mut want = start(m, p);
+            plain(want.as_mut(), &v, &one_more, stride, Samples::first(stride));
+            assert_ne!(product(&one_more, runs(4)), bits(&want), "{kernel:?}");
+        }
     }
 
     #[test]
@@ -455,7 +579,7 @@ mod tests {
             let mut scratch = vec![f64::NAN; scratch_len(p, k)];
             gram_product(got.as_mut(), &v, &u, stride, k, &mut scratch);
             let mut loop_bits = start(m, p);
-            plain(loop_bits.as_mut(), &v, &u, stride, k);
+            plain(loop_bits.as_mut(), &v, &u, stride, Samples::first(k));
             let mut faer_bits = start(m, p);
             let vm = MatRef::from_row_major_slice(&v, m, stride).get(.., ..k);
             let um = MatRef::from_row_major_slice(&u, p, stride).get(.., ..k);

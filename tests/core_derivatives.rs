@@ -255,6 +255,16 @@ fn gram_matches_the_rows_of_the_jacobian_square() {
     check_against_rows(3, 2, 2, 2, false);
 }
 
+/// Sizes whose Gram products run on the core's kernels (more than
+/// `FAER_ENTRIES` entries) in parts: the entries of `Theta`'s last rows
+/// over their own output's (or input's) samples alone.
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_in_parts_by_outputs_and_by_inputs() {
+    check_against_rows(6, 3, 2, 1, false);
+    check_against_rows(6, 2, 3, 1, true);
+    check_against_rows(5, 3, 3, 1, false);
+}
+
 #[test]
 fn the_response_of_a_sum_is_that_of_its_parts_one_after_the_other() {
     let (a, theta) = problem(2, 1, 2, 1, true);
