@@ -123,13 +123,15 @@ impl Samples {
     }
 }
 
-/// `C += V U^T` over the first `k` samples: `V` is `m x stride` row-major
-/// (`v[i * stride + s]`), `U` `p x stride`, `C` `m x p`; on faer when `C`
-/// has at most [`FAER_ENTRIES`] entries, else on the widest kernel the
-/// processor runs. `scratch` holds at least [`scratch_len`]`(p, k)` values
-/// (its contents are overwritten).
+/// `C += V U^T` (`accum` [`Accum::Add`]) or `C = V U^T` ([`Accum::Replace`],
+/// whatever `C` held: the same bits as `C = 0` and `+=`) over the first `k`
+/// samples: `V` is `m x stride` row-major (`v[i * stride + s]`), `U`
+/// `p x stride`, `C` `m x p`; on faer when `C` has at most [`FAER_ENTRIES`]
+/// entries, else on the widest kernel the processor runs. `scratch` holds
+/// at least [`scratch_len`]`(p, k)` values (its contents are overwritten).
 pub fn gram_product(
-    c: MatMut<'_, f64>,
+    mut c: MatMut<'_, f64>,
+    accum: Accum,
     v: &[f64],
     u: &[f64],
     stride: usize,
@@ -140,19 +142,27 @@ pub fn gram_product(
     if m * p <= FAER_ENTRIES {
         let vm = MatRef::from_row_major_slice(&v[..m * stride], m, stride).get(.., ..k);
         let um = MatRef::from_row_major_slice(&u[..p * stride], p, stride).get(.., ..k);
+        if matches!(accum, Accum::Replace) {
+            c.fill(0.0);
+        }
         matmul(c, Accum::Add, vm, um.transpose(), 1.0, Par::Seq);
         return;
     }
-    gram_product_with(Kernel::best(), c, v, u, stride, Samples::first(k), scratch);
+    let samples = Samples::first(k);
+    gram_product_with(Kernel::best(), c, accum, v, u, stride, samples, scratch);
 }
 
 /// [`gram_product`] on a given kernel (the plain loop when the processor
 /// does not run it), over the given samples: each entry's sum runs over
 /// them in their order, so leaving out samples whose products are zero
-/// (`0 y` for finite `y`) leaves every entry's bits as they were.
+/// (`0 y` for finite `y`) leaves every entry's bits as they were. Each sum
+/// starts from `+0`, and fused multiply-adds from `+0` never give `-0`: so
+/// replacing `C` by the sums is adding them to zeros, to the last bit.
+#[allow(clippy::too_many_arguments)]
 pub fn gram_product_with(
     kernel: Kernel,
     mut c: MatMut<'_, f64>,
+    accum: Accum,
     v: &[f64],
     u: &[f64],
     stride: usize,
@@ -164,7 +174,14 @@ pub fn gram_product_with(
     assert!(samples.end() <= stride, "samples past the stride {stride}");
     assert!(v.len() >= m * stride && u.len() >= p * stride);
     assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
-    if m == 0 || p == 0 || k == 0 {
+    let add = matches!(accum, Accum::Add);
+    if m == 0 || p == 0 {
+        return;
+    }
+    if k == 0 {
+        if !add {
+            c.fill(0.0);
+        }
         return;
     }
     let kernel = if kernel.available() {
@@ -173,7 +190,7 @@ pub fn gram_product_with(
         Kernel::Plain
     };
     let (mr, nr) = match kernel {
-        Kernel::Plain => return plain(c, v, u, stride, samples),
+        Kernel::Plain => return plain(c, add, v, u, stride, samples),
         Kernel::Avx2 => (MR_256, NR_256),
         Kernel::Avx512 => (MR_512, NR_512),
     };
@@ -185,7 +202,8 @@ pub fn gram_product_with(
     for (jp, panel) in up.chunks_mut(nr * k).enumerate() {
         pack(panel, u, stride, samples, jp * nr, nr, p);
     }
-    // Whole blocks of a C with contiguous columns are added to in place.
+    // Whole blocks of a C with contiguous columns are added to (or
+    // written) in place; the others summed from zero in `block`.
     let ldc = usize::try_from(c.col_stride())
         .ok()
         .filter(|_| c.row_stride() == 1);
@@ -194,11 +212,11 @@ pub fn gram_product_with(
         for (jp, panel) in up.chunks(nr * k).enumerate() {
             let j0 = jp * nr;
             let whole = i0 + mr <= m && j0 + nr <= p;
-            let (out, ld) = match ldc {
-                Some(ld) if whole => (c.as_mut().get_mut(i0.., j0..).as_ptr_mut(), ld),
+            let (out, ld, onto) = match ldc {
+                Some(ld) if whole => (c.as_mut().get_mut(i0.., j0..).as_ptr_mut(), ld, add),
                 _ => {
                     block.iter_mut().for_each(|x| *x = 0.0);
-                    (block.as_mut_ptr(), mr)
+                    (block.as_mut_ptr(), mr, true)
                 }
             };
             #[cfg(target_arch = "x86_64")]
@@ -208,20 +226,21 @@ pub fn gram_product_with(
             // block of it, its columns contiguous) or in `block`.
             unsafe {
                 match kernel {
-                    Kernel::Avx512 => x86::block_512(vp, panel, k, out, ld),
-                    _ => x86::block_256(vp, panel, k, out, ld),
+                    Kernel::Avx512 => x86::block_512(vp, panel, k, out, ld, onto),
+                    _ => x86::block_256(vp, panel, k, out, ld, onto),
                 }
             }
             #[cfg(not(target_arch = "x86_64"))]
             // SAFETY: as above.
             unsafe {
-                block_plain(vp, panel, k, mr, nr, out, ld)
+                block_plain(vp, panel, k, mr, nr, out, ld, onto)
             };
             if out == block.as_mut_ptr() {
                 for jj in 0..nr.min(p - j0) {
                     let mut col = c.as_mut().col_mut(j0 + jj);
                     for ii in 0..mr.min(m - i0) {
-                        col[i0 + ii] += block[jj * mr + ii];
+                        let sum = block[jj * mr + ii];
+                        col[i0 + ii] = if add { col[i0 + ii] + sum } else { sum };
                     }
                 }
             }
@@ -303,7 +322,7 @@ fn pack_run(
 }
 
 /// The plain loop, entry by entry.
-fn plain(mut c: MatMut<'_, f64>, v: &[f64], u: &[f64], stride: usize, samples: Samples) {
+fn plain(mut c: MatMut<'_, f64>, add: bool, v: &[f64], u: &[f64], stride: usize, samples: Samples) {
     let (m, p) = (c.nrows(), c.ncols());
     for j in 0..p {
         let uj = &u[j * stride..(j + 1) * stride];
@@ -313,13 +332,14 @@ fn plain(mut c: MatMut<'_, f64>, v: &[f64], u: &[f64], stride: usize, samples: S
             for s in samples.iter() {
                 acc = vi[s].mul_add(uj[s], acc);
             }
-            c[(i, j)] += acc;
+            c[(i, j)] = if add { c[(i, j)] + acc } else { acc };
         }
     }
 }
 
 /// Adds a block of `mr x nr` sums from the panels to `out` (columns `ld`
-/// apart), plainly (other architectures).
+/// apart), or writes them there (`add` false), plainly (other
+/// architectures).
 ///
 /// # Safety
 /// `out` is an `mr x nr` block with columns `ld` apart.
@@ -332,6 +352,7 @@ unsafe fn block_plain(
     nr: usize,
     out: *mut f64,
     ld: usize,
+    add: bool,
 ) {
     for jj in 0..nr {
         for ii in 0..mr {
@@ -339,7 +360,8 @@ unsafe fn block_plain(
             for s in 0..k {
                 acc = vp[s * mr + ii].mul_add(up[s * nr + jj], acc);
             }
-            *out.add(jj * ld + ii) += acc;
+            let at = out.add(jj * ld + ii);
+            *at = if add { *at + acc } else { acc };
         }
     }
 }
@@ -350,15 +372,22 @@ mod x86 {
     use std::arch::x86_64::*;
 
     /// A kernel on one register width: `out[jj * ld + ii] += sum_s
-    /// vp[s * mr + ii] up[s * nr + jj]`, each sum from zero with one fused
-    /// multiply-add per sample in order, `mr` rows as two registers of
-    /// `half` doubles.
+    /// vp[s * mr + ii] up[s * nr + jj]` (`=` with `add` false), each sum
+    /// from zero with one fused multiply-add per sample in order, `mr` rows
+    /// as two registers of `half` doubles.
     macro_rules! block_kernel {
         ($(#[$doc:meta])* $name:ident, $feature:literal, $mr:ident, $nr:ident, $half:literal,
          $zero:ident, $load:ident, $store:ident, $splat:ident, $fma:ident, $add:ident) => {
             $(#[$doc])*
             #[target_feature(enable = $feature)]
-            pub unsafe fn $name(vp: &[f64], up: &[f64], k: usize, out: *mut f64, ld: usize) {
+            pub unsafe fn $name(
+                vp: &[f64],
+                up: &[f64],
+                k: usize,
+                out: *mut f64,
+                ld: usize,
+                add: bool,
+            ) {
                 debug_assert!(vp.len() >= $mr * k && up.len() >= $nr * k);
                 let mut acc = [[$zero(); 2]; $nr];
                 let (a, b) = (vp.as_ptr(), up.as_ptr());
@@ -373,9 +402,14 @@ mod x86 {
                 }
                 for (jj, pair) in acc.iter().enumerate() {
                     let col = out.add(jj * ld);
-                    $store(col, $add($load(col), pair[0]));
-                    let col = col.add($half);
-                    $store(col, $add($load(col), pair[1]));
+                    let top = col.add($half);
+                    if add {
+                        $store(col, $add($load(col), pair[0]));
+                        $store(top, $add($load(top), pair[1]));
+                    } else {
+                        $store(col, pair[0]);
+                        $store(top, pair[1]);
+                    }
                 }
             }
         };

@@ -20,12 +20,21 @@ fn every_kernel_gives_the_plain_loops_bits() {
     for (m, p, stride, k) in [(1, 1, 1, 1), (17, 13, 40, 37), (35, 26, 9, 9), (8, 6, 5, 0)] {
         let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
         let mut want = start(m, p);
-        plain(want.as_mut(), &v, &u, stride, Samples::first(k));
+        plain(want.as_mut(), true, &v, &u, stride, Samples::first(k));
         for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
             let mut got = start(m, p);
             let mut scratch = vec![f64::NAN; scratch_len(p, k)];
             let samples = Samples::first(k);
-            gram_product_with(kernel, got.as_mut(), &v, &u, stride, samples, &mut scratch);
+            gram_product_with(
+                kernel,
+                got.as_mut(),
+                Accum::Add,
+                &v,
+                &u,
+                stride,
+                samples,
+                &mut scratch,
+            );
             for j in 0..p {
                 for i in 0..m {
                     assert_eq!(
@@ -47,6 +56,7 @@ fn the_plain_loop_is_the_product_and_fuses_each_step() {
     let mut got = start(m, p);
     gram_product(
         got.as_mut(),
+        Accum::Add,
         &v,
         &u,
         stride,
@@ -70,6 +80,7 @@ fn the_plain_loop_is_the_product_and_fuses_each_step() {
     gram_product_with(
         Kernel::best(),
         c.as_mut(),
+        Accum::Add,
         &v1,
         &u1,
         2,
@@ -109,12 +120,21 @@ fn a_product_over_runs_of_samples_leaves_out_only_their_zero_products() {
             .collect()
     };
     let mut whole = start(m, p);
-    plain(whole.as_mut(), &v, &u, stride, Samples::first(stride));
+    plain(whole.as_mut(), true, &v, &u, stride, Samples::first(stride));
     for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
         let product = |u: &[f64], samples: Samples| {
             let mut got = start(m, p);
             let mut scratch = vec![f64::NAN; scratch_len(p, samples.total())];
-            gram_product_with(kernel, got.as_mut(), &v, u, stride, samples, &mut scratch);
+            gram_product_with(
+                kernel,
+                got.as_mut(),
+                Accum::Add,
+                &v,
+                u,
+                stride,
+                samples,
+                &mut scratch,
+            );
             bits(&got)
         };
         assert_eq!(product(&u, runs(4)), bits(&whole), "{kernel:?}");
@@ -122,7 +142,14 @@ fn a_product_over_runs_of_samples_leaves_out_only_their_zero_products() {
         let mut one_more = u.clone();
         one_more[2] = 0.5;
         let mut want = start(m, p);
-        plain(want.as_mut(), &v, &one_more, stride, Samples::first(stride));
+        plain(
+            want.as_mut(),
+            true,
+            &v,
+            &one_more,
+            stride,
+            Samples::first(stride),
+        );
         assert_ne!(product(&one_more, runs(4)), bits(&want), "{kernel:?}");
     }
 }
@@ -137,9 +164,9 @@ fn small_products_run_on_faer_and_larger_ones_on_the_kernels() {
         let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
         let mut got = start(m, p);
         let mut scratch = vec![f64::NAN; scratch_len(p, k)];
-        gram_product(got.as_mut(), &v, &u, stride, k, &mut scratch);
+        gram_product(got.as_mut(), Accum::Add, &v, &u, stride, k, &mut scratch);
         let mut loop_bits = start(m, p);
-        plain(loop_bits.as_mut(), &v, &u, stride, Samples::first(k));
+        plain(loop_bits.as_mut(), true, &v, &u, stride, Samples::first(k));
         let mut faer_bits = start(m, p);
         let vm = MatRef::from_row_major_slice(&v, m, stride).get(.., ..k);
         let um = MatRef::from_row_major_slice(&u, p, stride).get(.., ..k);
@@ -171,5 +198,51 @@ fn small_products_run_on_faer_and_larger_ones_on_the_kernels() {
         if m * p <= FAER_ENTRIES {
             assert_ne!(bits(&got), bits(other), "{m} x {p}: the orders agree here");
         }
+    }
+}
+
+#[test]
+fn replacing_c_is_adding_to_zeros_whatever_c_held() {
+    // On every kernel and on faer, sizes off the blocks (whole blocks in
+    // place, the others through the block buffer), no sample at all too:
+    // the sums written over a C of NaNs have the bits of the sums added to
+    // a C of zeros.
+    for (m, p, stride, k) in [
+        (37, 29, 40, 36),
+        (16, 12, 8, 8),
+        (5, 40, 9, 9),
+        (9, 31, 4, 0),
+    ] {
+        let (v, u) = (filled(m, stride, 0.2), filled(p, stride, 2.9));
+        let bits = |x: &Mat<f64>| -> Vec<u64> {
+            (0..p)
+                .flat_map(|j| (0..m).map(move |i| (i, j)))
+                .map(|(i, j)| x[(i, j)].to_bits())
+                .collect()
+        };
+        let mut scratch = vec![f64::NAN; scratch_len(p, k)];
+        let samples = Samples::first(k);
+        for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
+            let mut want = Mat::<f64>::zeros(m, p);
+            let (w, s) = (want.as_mut(), &mut scratch);
+            gram_product_with(kernel, w, Accum::Add, &v, &u, stride, samples, s);
+            let mut got = Mat::from_fn(m, p, |_, _| f64::NAN);
+            let (g, s) = (got.as_mut(), &mut scratch);
+            gram_product_with(kernel, g, Accum::Replace, &v, &u, stride, samples, s);
+            assert_eq!(bits(&got), bits(&want), "{kernel:?} {m} x {p}, k {k}");
+        }
+        let mut want = Mat::<f64>::zeros(m, p);
+        gram_product(want.as_mut(), Accum::Add, &v, &u, stride, k, &mut scratch);
+        let mut got = Mat::from_fn(m, p, |_, _| f64::NAN);
+        gram_product(
+            got.as_mut(),
+            Accum::Replace,
+            &v,
+            &u,
+            stride,
+            k,
+            &mut scratch,
+        );
+        assert_eq!(bits(&got), bits(&want), "{m} x {p}, k {k}");
     }
 }

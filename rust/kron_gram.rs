@@ -32,7 +32,7 @@ use crate::lanes::{Cx, LANES};
 use crate::layout::{Matrix, Shape};
 use crate::lti::Resolvent;
 use crate::memory::{try_vec, try_zeros};
-use faer::Mat;
+use faer::{Accum, Mat};
 
 /// Samples (line and group index) per matrix product: large enough for an
 /// efficient product, small enough to stay in cache.
@@ -88,6 +88,9 @@ pub struct KronGram {
     v_im: Vec<f64>,
     /// Samples in the current block.
     filled: usize,
+    /// Whether `S1` and `S2` hold nothing of the lines added yet (stale
+    /// values, or zeros): the next block's products overwrite them.
+    fresh: bool,
     /// `S1` (`packed(n + r) x packed(n + l)`) and `S2` (strict triangles).
     s1: Mat<f64>,
     s2: Mat<f64>,
@@ -132,6 +135,7 @@ impl KronGram {
             v_re: try_vec(packed(db) * cols, 0.0, samples)?,
             v_im: try_vec(strict(db) * cols, 0.0, samples)?,
             filled: 0,
+            fresh: true,
             s1,
             s2,
             jtr: vec![[0.0; LANES]; da * db],
@@ -258,10 +262,20 @@ impl KronGram {
     /// alone, the same sums without the zero terms (14 % of the products
     /// at 3 x 3, 10 % at 2 x 2); products small enough to run on faer
     /// (another order of the sums) run whole.
+    ///
+    /// The first block after [`KronGram::finish`] or [`KronGram::clear`]
+    /// writes its sums over whatever the sums held (no pass of zeros
+    /// before: 2.1 MB a task at 3 x 3), the entries that are zero at every
+    /// sample set to zero.
     fn flush(&mut self) {
         if self.filled == 0 {
             return;
         }
+        let accum = if std::mem::take(&mut self.fresh) {
+            Accum::Replace
+        } else {
+            Accum::Add
+        };
         let cols = self.cols();
         let (n, groups, filled) = (self.n, self.l.min(self.r), self.filled);
         let by_output = self.by_output;
@@ -277,8 +291,18 @@ impl KronGram {
             (&mut self.s2, &self.v_im, &self.u_im, false),
         ] {
             if groups == 1 || out.nrows() * out.ncols() <= FAER_ENTRIES {
-                gram_product(out.as_mut(), vs, us, cols, filled, panels);
+                gram_product(out.as_mut(), accum, vs, us, cols, filled, panels);
                 continue;
+            }
+            if matches!(accum, Accum::Replace) {
+                for j in 0..groups {
+                    let zero = last_rows(n, j, diagonal).end..triangle(n + j + 1, diagonal);
+                    let (start, len) = (zero.start, zero.len());
+                    match by_output {
+                        true => out.as_mut().subcols_mut(start, len).fill(0.0),
+                        false => out.as_mut().subrows_mut(start, len).fill(0.0),
+                    }
+                }
             }
             let mut parts = vec![(0..triangle(n, diagonal), Samples::first(filled))];
             parts.extend((0..groups).map(|j| (last_rows(n, j, diagonal), own(j))));
@@ -287,10 +311,10 @@ impl KronGram {
                 let at = range.start * cols;
                 if by_output {
                     let c = out.as_mut().subcols_mut(range.start, range.len());
-                    gram_product_with(best, c, vs, &us[at..], cols, samples, panels);
+                    gram_product_with(best, c, accum, vs, &us[at..], cols, samples, panels);
                 } else {
                     let c = out.as_mut().subrows_mut(range.start, range.len());
-                    gram_product_with(best, c, &vs[at..], us, cols, samples, panels);
+                    gram_product_with(best, c, accum, &vs[at..], us, cols, samples, panels);
                 }
             }
         }
@@ -300,17 +324,22 @@ impl KronGram {
     /// Drop everything added so far.
     pub fn clear(&mut self) {
         self.filled = 0;
-        self.s1.as_mut().fill(0.0);
-        self.s2.as_mut().fill(0.0);
+        self.fresh = true;
         self.jtr.iter_mut().for_each(|g| *g = [0.0; LANES]);
     }
 
     /// Everything added since the last call, which leaves the accumulator
-    /// empty for the next lines, on `next`: zeroed `S1` and `S2` of the
-    /// shape's sizes ([`KronGram::sums`]; its sample buffers are kept:
-    /// every column is written before it is read).
+    /// empty for the next lines, on `next`: `S1` and `S2` of the shape's
+    /// sizes, whatever they hold (the next block's products overwrite
+    /// them; its sample buffers are kept too: every column is written
+    /// before it is read).
     pub fn finish(&mut self, shape: &Shape, next: (Mat<f64>, Mat<f64>)) -> GramParts {
         self.flush();
+        if std::mem::replace(&mut self.fresh, true) {
+            // No line since the last call: the sums of none.
+            self.s1.as_mut().fill(0.0);
+            self.s2.as_mut().fill(0.0);
+        }
         let da = self.n + self.l;
         let mut jtr = vec![0.0; shape.lti_len()];
         for (ab, g) in self.jtr.iter_mut().enumerate() {

@@ -32,7 +32,7 @@ use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
 use crate::gram_product::{gram_product, scratch_len};
 use crate::memory::{try_vec, try_zeros};
-use faer::Mat;
+use faer::{Accum, Mat};
 use rayon::prelude::*;
 
 /// A pivot of the unit-diagonal `H_q` below this ends its factorisation.
@@ -255,7 +255,15 @@ impl PointFactors {
                     0.0,
                     "the scratch of the reduced Gram matrix",
                 )?;
-                gram_product(block.as_mut(), &a.l, &wl, lti, lti, &mut scratch);
+                gram_product(
+                    block.as_mut(),
+                    Accum::Add,
+                    &a.l,
+                    &wl,
+                    lti,
+                    lti,
+                    &mut scratch,
+                );
                 Ok(block)
             })
             .collect::<Result<Vec<_>>>()?;

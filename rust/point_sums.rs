@@ -7,10 +7,10 @@
 //! order, so that the sum is the same to the last bit however the tasks
 //! were scheduled. Summed as they come in (a part waits only for the
 //! earlier tasks of its point), a few parts are alive at a time instead of
-//! all of them, and the buffers of a part once summed are zeroed and handed
-//! to the next task instead of fresh memory: at n = 24 3 x 3, 162 parts of
-//! 2.1 MB an evaluation, whose page faults and zeroing took about 15 % of
-//! it.
+//! all of them, and the buffers of a part once summed are handed to the
+//! next task instead of fresh memory, whose first products write over them
+//! ([`KronGram::finish`]): at n = 24 3 x 3, 162 parts of 2.1 MB an
+//! evaluation, whose page faults and zeroing took about 15 % of it.
 
 use crate::error::Result;
 use crate::kron_gram::{GramParts, KronGram};
@@ -49,16 +49,13 @@ impl PointSums {
         }
     }
 
-    /// Zeroed `S1` and `S2` for a task's accumulator: a spare pair, or
-    /// fresh ones ([`crate::Error::OutOfMemory`] when they cannot be had).
-    pub fn zeroed(&self, shape: &Shape) -> Result<(Mat<f64>, Mat<f64>)> {
+    /// `S1` and `S2` for a task's accumulator to write over: a spare pair
+    /// (holding a summed part's values), or zeros
+    /// ([`crate::Error::OutOfMemory`] when they cannot be had).
+    pub fn next_sums(&self, shape: &Shape) -> Result<(Mat<f64>, Mat<f64>)> {
         let spare = locked(&self.spare).pop();
         match spare {
-            Some((mut s1, mut s2)) => {
-                s1.as_mut().fill(0.0);
-                s2.as_mut().fill(0.0);
-                Ok((s1, s2))
-            }
+            Some(pair) => Ok(pair),
             None => KronGram::sums(shape),
         }
     }
@@ -165,27 +162,29 @@ mod tests {
     }
 
     #[test]
-    fn the_buffers_of_summed_parts_come_back_zeroed() {
+    fn the_buffers_of_summed_parts_are_handed_out_again() {
         let mut rng = Lcg(7);
         let sums = PointSums::new(1);
-        for task in 0..3 {
-            sums.add(0, task, part(&mut rng));
+        let parts: Vec<GramParts> = (0..3).map(|_| part(&mut rng)).collect();
+        for (task, p) in parts.iter().enumerate() {
+            sums.add(0, task, p.clone());
         }
-        // Two parts were summed into the first: their buffers are spare.
+        // Two parts were summed into the first: their buffers are spare,
+        // the last one's first, as they were.
         assert_eq!(locked(&sums.spare).len(), 2);
-        let (s1, s2) = sums.zeroed(&shape()).expect("a spare pair");
+        let (s1, s2) = sums.next_sums(&shape()).expect("a spare pair");
+        let (w1, w2) = parts[2].clone().into_sums();
+        assert_eq!((&s1, &s2), (&w1, &w2));
         assert_eq!(locked(&sums.spare).len(), 1);
+        // With no spare left, zeros of the shape's sizes.
+        let _ = sums.next_sums(&shape()).expect("the last spare");
+        let (f1, f2) = sums.next_sums(&shape()).expect("fresh sums");
         assert_eq!(
-            (s1.nrows(), s1.ncols(), s2.nrows(), s2.ncols()),
+            (f1.nrows(), f1.ncols(), f2.nrows(), f2.ncols()),
             (6, 6, 3, 3)
         );
         let zero =
             |m: &Mat<f64>| (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].to_bits() == 0));
-        assert!(zero(&s1) && zero(&s2));
-        // With no spare left, fresh zeros of the shape's sizes.
-        let _ = sums.zeroed(&shape()).expect("the last spare");
-        let (f1, f2) = sums.zeroed(&shape()).expect("fresh sums");
-        assert_eq!((f1.nrows(), f2.nrows()), (6, 3));
         assert!(zero(&f1) && zero(&f2));
     }
 }

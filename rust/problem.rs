@@ -274,7 +274,7 @@ impl Problem {
         let q = task.point;
         let acc = &mut ws.gram;
         // The accumulator's next sums, had before it fills (it is empty now).
-        let next = sums.zeroed(&self.shape)?;
+        let next = sums.next_sums(&self.shape)?;
         let mut w = vec![[0.0; LANES]; lr];
         let mut err = vec![Cx::default(); lr];
         for first in (task.first..task.end).step_by(LANES) {

@@ -18,6 +18,19 @@ fn problem_at(
     discrete: bool,
     s: &[f64],
 ) -> (Problem, Vec<f64>) {
+    problem_of(n, r, l, nb, discrete, s, 13)
+}
+
+/// [`problem_at`] with `lines` frequency lines.
+fn problem_of(
+    n: usize,
+    r: usize,
+    l: usize,
+    nb: usize,
+    discrete: bool,
+    s: &[f64],
+    lines: usize,
+) -> (Problem, Vec<f64>) {
     let shape = Shape::new(n, r, l, nb).unwrap();
     let mut rng = Lcg(42 + n as u64);
     let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
@@ -26,7 +39,6 @@ fn problem_at(
         theta[a0.start + k * (n + 1)] += if discrete { 0.2 } else { -1.5 };
     }
     let n_points = s.len();
-    let lines = 13;
     let z: Vec<C64> = (0..lines)
         .map(|k| {
             let w = 0.1 + 0.2 * k as f64;
@@ -263,6 +275,14 @@ fn gram_matches_the_rows_of_the_jacobian_in_parts_by_outputs_and_by_inputs() {
     check_against_rows(6, 3, 2, 1, false);
     check_against_rows(6, 2, 3, 1, true);
     check_against_rows(5, 3, 3, 1, false);
+}
+
+/// Several tasks a point (56 lines a task at 3 x 3): the buffers of a
+/// summed part go to a later task, whose first products write over them.
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_over_several_tasks_a_point() {
+    let (p, theta) = problem_of(5, 3, 3, 1, false, &[-0.5, 0.5], 200);
+    check_rows_of(&p, &theta);
 }
 
 #[test]
