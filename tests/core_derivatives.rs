@@ -6,22 +6,19 @@ use lpvid::{FreeSet, FrfData, Matrix, Objective, Problem, Shape};
 use num_complex::Complex64 as C64;
 
 fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
-    problem_at(n, r, l, nb, discrete, &[-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0])
+    problem_of(
+        n,
+        r,
+        l,
+        nb,
+        discrete,
+        &[-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0],
+        13,
+    )
 }
 
-/// [`problem`] at the scheduling points `s` (the basis `s, s^2, ...`).
-fn problem_at(
-    n: usize,
-    r: usize,
-    l: usize,
-    nb: usize,
-    discrete: bool,
-    s: &[f64],
-) -> (Problem, Vec<f64>) {
-    problem_of(n, r, l, nb, discrete, s, 13)
-}
-
-/// [`problem_at`] with `lines` frequency lines.
+/// [`problem`] at the scheduling points `s` (the basis `s, s^2, ...`), with
+/// `lines` frequency lines.
 fn problem_of(
     n: usize,
     r: usize,
@@ -229,7 +226,7 @@ fn check_rows_of(p: &Problem, theta: &[f64]) {
 /// their pairs have no term, and their blocks of `J^T J` are exactly zero.
 #[test]
 fn gram_of_basis_functions_zero_at_every_point_is_zero() {
-    let (p, theta) = problem_at(2, 1, 2, 2, true, &[0.0, 0.0]);
+    let (p, theta) = problem_of(2, 1, 2, 2, true, &[0.0, 0.0], 13);
     check_rows_of(&p, &theta);
     let shape = *p.shape();
     let gn = p.gauss_newton(&theta, &FreeSet::all(shape.len())).unwrap();

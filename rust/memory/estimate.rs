@@ -113,7 +113,7 @@ pub fn frf_evaluation(
     let residual = n_points * n_lines * l * r * C64;
     let base = forms + residual;
     // Stage 1: per thread a resolvent and a Gram accumulator, and the
-    // zeroed sums of its next task; every point's running sum of its
+    // sums of its next task; every point's running sum of its
     // tasks' parts, and the parts that wait for an earlier task of their
     // point (`crate::point_sums`: a thread works through a run of tasks in
     // order, so the parts of at most one point per thread wait), never
