@@ -21,6 +21,8 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
+use crate::route::Route;
+
 /// Rows of `C` and columns per register block of each kernel.
 const MR_512: usize = 16;
 const NR_512: usize = 12;
@@ -28,7 +30,7 @@ const MR_256: usize = 8;
 const NR_256: usize = 6;
 
 /// Which kernel a product runs on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Kernel {
     /// The plain loop (`f64::mul_add`).
     Plain,
@@ -39,29 +41,24 @@ pub enum Kernel {
 }
 
 impl Kernel {
-    /// The widest kernel this processor runs.
+    /// The kernel of the route the core runs ([`crate::route::Route::current`]:
+    /// the processor's widest unless `LPVID_KERNEL` asks for a narrower one).
     pub fn best() -> Kernel {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                return Kernel::Avx512;
-            }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                return Kernel::Avx2;
-            }
+        Kernel::of(Route::current())
+    }
+
+    /// The kernel of a route.
+    pub fn of(route: Route) -> Kernel {
+        match route {
+            Route::Avx512 => Kernel::Avx512,
+            Route::Avx2 => Kernel::Avx2,
+            Route::Portable => Kernel::Plain,
         }
-        Kernel::Plain
     }
 
     /// Whether this processor runs the kernel.
     pub fn available(self) -> bool {
-        match self {
-            Kernel::Plain => true,
-            Kernel::Avx2 => matches!(Kernel::best(), Kernel::Avx2 | Kernel::Avx512),
-            Kernel::Avx512 => Kernel::best() == Kernel::Avx512,
-        }
+        self <= Kernel::of(Route::detected())
     }
 }
 
@@ -292,7 +289,7 @@ fn pack_run(
     let live = rows.saturating_sub(r0).min(width);
     let mut q = 0;
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if Route::avx2() {
         let whole = k / 4 * 4;
         while q + 4 <= live {
             let rows4 = &x[(r0 + q) * stride..];

@@ -24,6 +24,7 @@ pub mod point_factors;
 pub mod point_sums;
 pub mod problem;
 pub mod response;
+pub mod route;
 pub mod sensitivity;
 pub mod simulate;
 pub mod socp;

@@ -440,18 +440,37 @@ def test_a_runner_unstable_after_a_round_goes_on_while_it_is_in_the_better_half(
     unstable after the first round and stable, at a tenth of the others'
     validation V_NLS, after the second (dropping such runners was measured:
     see docs/performance.md). The hard case's runners are all stable; two
-    that went past the first round are ranked unstable here: one still goes
-    on, and every stable runner that went on before goes on to the same end.
+    that went past the first round are ranked unstable here: they fall to
+    the end of the ranking, so the best runner left out before takes the
+    place of one of them, while the other is still in the better half and
+    goes on; every stable runner that went on before goes on again.
+
+    The situation is built on purpose: the runners' fits end only at their
+    step limit (no tolerance), so that none ends inside the first round and
+    the runners past it are exactly the better half the race keeps, by the
+    race's count alone. (With the starts' tolerance, whether a runner
+    converged at the first round's last step followed numpy's BLAS kernel,
+    and with it how many went on: issue 59.)
     """
     from lpvid.initial import race
 
     data, val = hard
     local = lpvid.identify_lti(data, 6)
-    kw = dict(validation=val, local=local)
+    kw = dict(validation=val, local=local, ftol=0.0)
+
+    def to_the_limit(*args, **kwargs):
+        return lpvid.fit_nls(*args, **{**kwargs, "xtol": 0.0})
+
+    monkeypatch.setattr(race, "fit_nls", to_the_limit)
     first = race.ROUNDS[0]
     plain = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    raced = [c.name for c in plain if c.fit.history]  # not dropped as hopeless
     went_on = [c.name for c in plain if len(c.fit.history) > first]
-    assert len(went_on) >= 4  # two to mark, and at least `keep` stable ones beside them
+    # The race keeps the better half of every start that entered, hopeless ones counted.
+    assert len(went_on) == max(2, -(-len(plain) // 2)) < len(raced)
+    assert all(
+        len(c.fit.history) == first for c in plain if c.name in raced and c.name not in went_on
+    )
     marked = set(went_on[:2])
     rank = race._rank
 
@@ -460,12 +479,13 @@ def test_a_runner_unstable_after_a_round_goes_on_while_it_is_in_the_better_half(
         return [(k[0] or r.name in marked, *k[1:]) for r, k in zip(runners, keys, strict=True)]
 
     monkeypatch.setattr(race, "_rank", marking)
-    raced = initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
-    assert any(len(c.fit.history) > first for c in raced if c.name in marked)
-    for a, b in zip(plain, raced, strict=True):
-        if a.name in went_on and a.name not in marked:
-            assert len(b.fit.history) == len(a.fit.history) and b.refined == a.refined
-            assert np.array_equal(a.model.theta, b.model.theta)
+    again = {
+        c.name: len(c.fit.history) > first
+        for c in initial.initial_candidates(data, 6, DAMPED_BASIS, **kw)
+    }
+    assert sum(again[name] for name in marked) == 1  # one in the better half, one out of it
+    assert all(again[name] for name in went_on if name not in marked)
+    assert sum(again[name] for name in raced if name not in went_on) == 1
 
 
 # ------------------------------------------------------------------ the easy case

@@ -13,6 +13,7 @@ from lpvid import _cpu  # noqa: F401
 # isort: split
 from lpvid import datasets, initial, plots, readers, report, trust
 from lpvid._core import __version__ as __version__
+from lpvid._cpu import kernel_route
 from lpvid.data.basis import Basis, CustomBasis, Legendre, Polynomial
 from lpvid.data.frf import FrfData
 from lpvid.data.measure import Multisine, estimate_frf, multisine
@@ -112,6 +113,7 @@ __all__ = [
     "initial_candidates",
     "initial_states",
     "judge",
+    "kernel_route",
     "l21_path",
     "multisine",
     "next_points",

@@ -14,6 +14,7 @@ from typing_extensions import Self
 __all__ = [
     "__version__",
     "__target_features__",
+    "kernel_route",
     "SingularModelError",
     "ModelView",
     "frequency_response",
@@ -40,6 +41,8 @@ __all__ = [
 __version__: str
 # "lpvid-target-features:avx,avx2,...;" (lpvid._cpu reads it from the file)
 __target_features__: str
+
+def kernel_route() -> str: ...
 
 class SingularModelError(ArithmeticError): ...
 

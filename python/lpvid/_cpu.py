@@ -11,12 +11,21 @@ this module finds it in the file and compares it with the processor's
 features as numpy detects them, before anything loads the module.
 Extensions numpy does not report (``xsave``, ``fxsr``, ...) are not checked.
 Importing this module makes the check; ``lpvid/__init__.py`` imports it first.
+
+It also checks the route switch ``LPVID_KERNEL`` (``auto``, ``avx512``,
+``avx2``, ``portable``; ``rust/route.rs``): the core's hand-written vector
+code runs the processor's widest route unless the variable asks for a
+narrower one, so that the route of a processor without AVX-512 can be run
+and tested on one with it. An unknown name, or a route this processor
+cannot run, is refused here with an ImportError (the core itself would
+fall back to the widest route).
 """
 
 from __future__ import annotations
 
 import importlib.util
 import mmap
+import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -76,6 +85,82 @@ def missing(features: Iterable[str], cpu: Mapping[str, bool]) -> list[str]:
     return [f for f in features if not cpu.get(numpy_name(f), True)]
 
 
+#: The environment variable that chooses the core's route (read once, at import).
+SWITCH = "LPVID_KERNEL"
+
+#: Each route the switch names, with the processor features (numpy's names) it needs.
+ROUTES: dict[str, tuple[str, ...]] = {
+    "avx512": ("AVX512F", "AVX2", "FMA3"),
+    "avx2": ("AVX2", "FMA3"),
+    "portable": (),
+}
+
+
+def check_route(
+    environ: Mapping[str, str] | None = None, cpu: Mapping[str, bool] | None = None
+) -> str | None:
+    """The route ``LPVID_KERNEL`` asks for (None: the processor's widest).
+
+    Parameters
+    ----------
+    environ : mapping of str to str, optional
+        The environment; default ``os.environ``.
+    cpu : mapping of str to bool, optional
+        The processor's features in numpy's names; default: numpy's detection.
+
+    Returns
+    -------
+    str or None
+
+    Raises
+    ------
+    ImportError
+        When the variable names no route, or a route whose features this
+        processor lacks.
+
+    """
+    value = (os.environ if environ is None else environ).get(SWITCH, "").strip().lower()
+    if value in ("", "auto"):
+        return None
+    if value not in ROUTES:
+        raise ImportError(
+            f"{SWITCH}={value!r}: expected one of auto, {', '.join(ROUTES)} "
+            "(the route of lpvid's vector kernels; docs/development.md)"
+        )
+    cpu = processor_features() if cpu is None else cpu
+    lacking = [f for f in ROUTES[value] if not cpu.get(f, False)]
+    if lacking:
+        raise ImportError(
+            f"{SWITCH}={value!r}: this processor lacks {', '.join(lacking)}; "
+            f"choose a narrower route ({', '.join(r for r in ROUTES if r != value)}) or unset it"
+        )
+    return value
+
+
+def kernel_route() -> str:
+    """The route of the compiled core's vector kernels that this process runs.
+
+    ``"avx512"``, ``"avx2"`` or ``"portable"``: the processor's widest, or
+    the narrower one the environment variable ``LPVID_KERNEL`` asked for
+    when lpvid was imported (see ``docs/development.md``, "Routes"). Every
+    route gives the same models; only the speed differs.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> import lpvid
+    >>> lpvid.kernel_route() in ("avx512", "avx2", "portable")
+    True
+
+    """
+    from lpvid import _core
+
+    return _core.kernel_route()
+
+
 def check_processor(cpu: Mapping[str, bool] | None = None) -> None:
     """Raise ImportError if this processor lacks an extension the compiled core uses.
 
@@ -108,3 +193,4 @@ def check_processor(cpu: Mapping[str, bool] | None = None) -> None:
 
 
 check_processor()
+check_route()

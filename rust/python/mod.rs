@@ -34,6 +34,13 @@ pyo3::create_exception!(
 /// built for AVX2 may use it anywhere, module initialisation included).
 const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARGET_FEATURES"), ";");
 
+/// The route of the core's hand-written vector code that this process runs
+/// (`"avx512"`, `"avx2"` or `"portable"`; [`crate::route`]).
+#[pyfunction]
+fn kernel_route() -> &'static str {
+    crate::route::Route::current().name()
+}
+
 /// The compiled core of lpvid (private: use the `lpvid` package).
 #[pymodule]
 #[pyo3(name = "_core")]
@@ -51,6 +58,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "SingularModelError",
         m.py().get_type::<SingularModelError>(),
     )?;
+    m.add_function(wrap_pyfunction!(kernel_route, m)?)?;
     m.add_class::<model_py::PyModelView>()?;
     problem_py::register(m)?;
     fit_py::register(m)?;

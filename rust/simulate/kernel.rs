@@ -125,7 +125,7 @@ impl<const K: usize> Lanes<K> {
             xs: x.as_deref_mut(),
         };
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new() {
+        if let Some(simd) = pulp::x86::V3::try_new().filter(|_| crate::route::Route::avx2()) {
             pulp::Simd::vectorize(simd, run);
             return (y, x);
         }

@@ -199,12 +199,15 @@ impl Frames {
                                 Some(sample) => sample,
                                 None => work.insert(Sample::new(coef, reference)?),
                             };
-                            // With AVX2 and FMA where the CPU has them.
-                            pulp::Arch::new()
-                                .dispatch(|| sample.hold(coef, record, states, dt, t, psi1, adk, f))
-                                .map_err(|e| {
-                                    Error::Numerical(format!("{e} (zero-order hold at sample {t})"))
-                                })?;
+                            // With AVX2 and FMA where the route has them.
+                            let step = || sample.hold(coef, record, states, dt, t, psi1, adk, f);
+                            let held = match crate::route::Route::avx2() {
+                                true => pulp::Arch::new().dispatch(step),
+                                false => step(),
+                            };
+                            held.map_err(|e| {
+                                Error::Numerical(format!("{e} (zero-order hold at sample {t})"))
+                            })?;
                         }
                     }
                 }
