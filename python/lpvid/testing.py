@@ -31,6 +31,7 @@ __all__ = [
     "modal_lpv",
     "one_group_lpv",
     "crossing_lpv",
+    "synthetic_parametric",
     "direct_frf",
     "noisy_data",
     "worst_relative_error",
@@ -305,6 +306,62 @@ def crossing_lpv(
     B = np.einsum("ij,kjl->kil", T, B)
     C = np.einsum("kij,jl->kil", C, Ti)
     return LpvModel(A, B, C, np.zeros((nb + 1, l, r)), basis)
+
+
+def synthetic_parametric(n: int = 10, domain: tuple[float, float] = (0.02, 1.0)) -> LpvModel:
+    """The model-reduction community's synthetic parametric model, of order ``n``.
+
+    From MORwiki ("Synthetic parametric model", modelreduction.org): a
+    continuous-time SISO system in real modal form, ``n/2`` complex pole
+    pairs ``mu a_k +- j b_k`` with ``a_k = -b_k`` and ``b_k`` equally spaced
+    in [10, 1000] rad/s, residues 1 (``B = [2, 0, 2, 0, ...]^T``,
+    ``C = [1, 0, 1, 0, ...]``), ``D = 0``; the parameter ``mu`` scales the
+    real parts, from light damping (2 % at ``mu = 0.02``) to heavy (71 % at
+    ``mu = 1``). ``A(mu) = A_0 + mu A_1`` with ``B``, ``C`` constant: over
+    ``Polynomial(2, domain)`` its only group is ``A(1)``. Its frequency band
+    is about 10^0.5 to 10^3.5 rad/s.
+
+    Parameters
+    ----------
+    n : int
+        Number of states (even; MORwiki's own is 100).
+    domain : (lo, hi)
+        Range of ``mu`` for the basis (MORwiki's is [1/50, 1]).
+
+    Returns
+    -------
+    LpvModel
+
+    Examples
+    --------
+    >>> import numpy as np, lpvid.testing
+    >>> m = lpvid.testing.synthetic_parametric(10)
+    >>> m.group_norms().nonzero()["A"], bool(np.allclose(m.at(0.5)[1].ravel(), [2, 0] * 5))
+    ([1], True)
+
+    """
+    n = positive_int(n, "n", minimum=2)
+    if n % 2:
+        raise ValueError(f"n: expected an even number of states, got {n}")
+    k = n // 2
+    b = np.linspace(10.0, 1000.0, k)
+    A0 = np.zeros((n, n))
+    A1 = np.zeros((n, n))
+    for i in range(k):
+        A0[2 * i, 2 * i + 1], A0[2 * i + 1, 2 * i] = b[i], -b[i]
+        A1[2 * i, 2 * i] = A1[2 * i + 1, 2 * i + 1] = -b[i]
+    B = np.zeros((n, 1))
+    B[0::2] = 2.0
+    C = np.zeros((1, n))
+    C[0, 0::2] = 1.0
+    lo, hi = domain
+    mid, half = (lo + hi) / 2, (hi - lo) / 2  # mu = mid + half s
+
+    def only(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.stack([x, 0 * x, 0 * x])
+
+    A = np.stack([A0 + mid * A1, half * A1, 0 * A1])
+    return LpvModel(A, only(B), only(C), np.zeros((3, 1, 1)), Polynomial(2, domain=(lo, hi)))
 
 
 def direct_frf(model: LpvModel, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.complex128]:
