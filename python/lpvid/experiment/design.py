@@ -14,17 +14,18 @@ from collections.abc import Iterator
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid import _core
-from lpvid.data.frf import z_points
-from lpvid.model._view import model_view
 from lpvid.model.lpv import LpvModel
-from lpvid.trust.uncertainty import band_radius, coefficient_weights, frozen_blocks
+from lpvid.trust.uncertainty import (
+    band_radius,
+    coefficient_weights,
+    frozen_blocks,
+    frozen_grams,
+)
 
 __all__ = [
     "TIE",
     "GridParts",
     "factor",
-    "frozen_grams",
     "greedy_update",
     "relative_band",
     "target",
@@ -33,43 +34,13 @@ __all__ = [
 
 #: Entries of the grid's parts kept in memory (200 MB), see :class:`GridParts`.
 _KEPT_ENTRIES = 25_000_000
-#: Complex Jacobian entries per call to the core (memory of one chunk).
+#: Entries per chunk of the candidates' algebra (memory of one chunk).
 _CHUNK_ENTRIES = 2_000_000
 #: Relative margin within which the criterion after two candidates ties:
 #: predicted mean variances within 0.1 % of the lowest (bands within 0.05 %)
 #: promise the same. The update agrees with an exact recomputation to about
 #: 1e-7 of that variance on the benchmark's systems.
 TIE = 1e-3
-
-
-def frozen_grams(
-    model: LpvModel, freqs_hz: NDArray[np.float64], p: NDArray[np.float64], weights: NDArray
-) -> NDArray[np.float64]:
-    """``Re(J^H diag(weights) J)`` of the frozen parameters at every point: (M, L, L).
-
-    ``J`` is the Jacobian of the frozen FRF (every line, output and input,
-    in the order of ``model.frf``) with respect to the frozen model's
-    parameters ``[vec A; vec B; vec C; vec D]``; ``weights`` (M, F, l, r)
-    weight its rows (``1 / sigma^2`` gives the information one measurement
-    adds, as in :func:`lpvid.fit.cost.gauss_newton`).
-    """
-    n, r, l, nb = model.shape
-    psi = model.basis_values(p)
-    z = z_points(freqs_hz, model.Ts)
-    rows = freqs_hz.size * l * r
-    lti = n * n + n * r + l * n + l * r
-    chunk = max(1, _CHUNK_ENTRIES // max(rows * lti, 1))
-    m = psi.shape[0]
-    out = np.empty((m, lti, lti))
-    wt = weights.reshape(m, rows)
-    for first in range(0, m, chunk):
-        sl = slice(first, min(first + chunk, m))
-        k = sl.stop - sl.start
-        jac = _core.lti_jacobian(model_view(model, psi[sl]), z)
-        x = jac.reshape(k, rows, lti) * np.sqrt(wt[sl])[:, :, None]
-        x = np.concatenate([x.real, x.imag], axis=1)
-        out[sl] = x.transpose(0, 2, 1) @ x
-    return 0.5 * (out + out.transpose(0, 2, 1))
 
 
 def _chunks(m: int, per_item: int) -> list[slice]:

@@ -45,10 +45,12 @@ from lpvid.model.layout import MATRICES, fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.model.similarity import free_similarity_directions
 
-__all__ = ["Covariance", "covariance", "band_radius"]
+__all__ = ["Covariance", "covariance", "band_radius", "frozen_grams"]
 
 #: Rows of the LTI Jacobian per call to the core when propagating to the FRF.
 _CHUNK_ROWS = 200_000
+#: Complex Jacobian entries per call to the core in :func:`frozen_grams`.
+_CHUNK_ENTRIES = 2_000_000
 
 
 def band_radius(level: float = 0.95) -> float:
@@ -251,6 +253,36 @@ def frozen_blocks(
     """
     blocks = matrix[index[:, :, None, None], index[None, None, :, :]]
     return np.einsum("mi,iujv,mj->muv", w, blocks, w, optimize=True)
+
+
+def frozen_grams(
+    model: LpvModel, freqs_hz: NDArray[np.float64], p: NDArray[np.float64], weights: NDArray
+) -> NDArray[np.float64]:
+    """``Re(J^H diag(weights) J)`` of the frozen parameters at every point: (M, L, L).
+
+    ``J`` is the Jacobian of the frozen FRF (every line, output and input,
+    in the order of ``model.frf``) with respect to the frozen model's
+    parameters ``[vec A; vec B; vec C; vec D]``; ``weights`` (M, F, l, r)
+    weight its rows (``1 / sigma^2`` gives the information one measurement
+    adds, as in :func:`lpvid.fit.cost.gauss_newton`).
+    """
+    n, r, l, nb = model.shape
+    psi = model.basis_values(p)
+    z = z_points(freqs_hz, model.Ts)
+    rows = freqs_hz.size * l * r
+    lti = n * n + n * r + l * n + l * r
+    chunk = max(1, _CHUNK_ENTRIES // max(rows * lti, 1))
+    m = psi.shape[0]
+    out = np.empty((m, lti, lti))
+    wt = weights.reshape(m, rows)
+    for first in range(0, m, chunk):
+        sl = slice(first, min(first + chunk, m))
+        k = sl.stop - sl.start
+        jac = _core.lti_jacobian(model_view(model, psi[sl]), z)
+        x = jac.reshape(k, rows, lti) * np.sqrt(wt[sl])[:, :, None]
+        x = np.concatenate([x.real, x.imag], axis=1)
+        out[sl] = x.transpose(0, 2, 1) @ x
+    return 0.5 * (out + out.transpose(0, 2, 1))
 
 
 def _lti_index(model: LpvModel) -> NDArray[np.int_]:
