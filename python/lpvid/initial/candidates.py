@@ -14,8 +14,11 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from lpvid._checks import positive_float, positive_int
 from lpvid._threads import single_blas
@@ -42,7 +45,7 @@ from lpvid.model.frozen import frozen_stable
 from lpvid.model.layout import fixed_mask, strictly_proper
 from lpvid.model.lpv import LpvModel
 
-__all__ = ["ROUTES", "Candidate", "candidates_of", "initial_candidates"]
+__all__ = ["ROUTES", "Candidate", "candidates_of", "fitted_candidate", "initial_candidates"]
 
 
 @dataclass
@@ -96,6 +99,11 @@ class Candidate:
         The model that run started from: the SMILE model (with its
         ``info["form"]``), or for a global start the model before its last
         stage (for ``"global:all"``, the constant model).
+    structure : ndarray of bool or None
+        Parameters the candidate holds fixed beyond the problem's own
+        (:mod:`lpvid.initial.blocks`: the entries of ``A`` off its blocks),
+        as a fixed mask that includes the problem's; the path, the refit and
+        the covariance keep it. None: only the problem's.
     """
 
     name: str
@@ -112,6 +120,7 @@ class Candidate:
     fit: FitResult | None = None
     start: LpvModel | None = None
     refined: bool = True
+    structure: NDArray[np.bool_] | None = field(default=None, repr=False)
 
     @property
     def ratio(self) -> float:
@@ -169,6 +178,38 @@ def _candidate(
         fit=fit,
         start=start,
         refined=runner.dropped is None,
+    )
+
+
+def fitted_candidate(
+    name: str,
+    fit: FitResult,
+    start: LpvModel,
+    data: FrfData,
+    validation: FrfData | None,
+    *,
+    seconds: float,
+    note: str,
+    structure: NDArray[np.bool_] | None = None,
+) -> Candidate:
+    """A candidate refined outside the race: ``fit`` from ``start``, evaluated on the data."""
+    model = fit.model
+    model.info["candidate"] = name
+    return Candidate(
+        name=name,
+        model=model,
+        vnls=float(fit.vnls),
+        noise_floor=data.n_residuals,
+        validation_vnls=None if validation is None else vnls(model, validation),
+        validation_floor=None if validation is None else validation.n_residuals,
+        seconds=seconds,
+        constant_groups=0,
+        stable=frozen_stable(model, between_points(data.p)),
+        dependence=dependence(model, data),
+        note=note,
+        fit=fit,
+        start=start,
+        structure=structure,
     )
 
 
