@@ -11,6 +11,7 @@ from lpvid.fit.timecost import TimeCost, total_vnls
 from lpvid.initial.candidates import Candidate
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.lpv import LpvModel
+from lpvid.pipeline.between import Between
 from lpvid.stable.scan import StabilityReport
 from lpvid.trust.steps import trust_lines
 from lpvid.trust.uncertainty import Covariance
@@ -128,6 +129,11 @@ class IdentifyResult:
         Stability of the frozen models of :attr:`model` over the scheduling
         range (the model's, else the data's); ``lpvid.stability(result.model)``
         adds the quadratic (common Lyapunov) test.
+    between : Between or None
+        What the measured points leave open between them: how many
+        directions of :attr:`model`'s structure they do not see (and how
+        many more points would), the other fits within the noise, and a
+        spread between the points (:class:`lpvid.pipeline.between.Between`).
     """
 
     model: LpvModel
@@ -150,6 +156,7 @@ class IdentifyResult:
     refitted: bool = False
     covariance: Covariance | None = None
     stability: StabilityReport | None = None
+    between: Between | None = None
 
     @property
     def entry(self) -> PathEntry:
@@ -198,7 +205,7 @@ class IdentifyResult:
                 ]
             ),
             f"chosen: gamma = {e.gamma:g}, {e.n_groups} groups kept "
-            f"(the SMILE model uses {self.initial.group_norms().count()}); {self.reason}",
+            f"(the start uses {self.initial.group_norms().count()}); {self.reason}",
             f"V_NLS = {e.vnls:.6g} on identification data (noise floor {e.noise_floor}, "
             f"ratio {e.vnls / e.noise_floor:.3f})",
         ]
@@ -210,6 +217,8 @@ class IdentifyResult:
         lines += trust_lines(
             self.entry, self.refit_entry, self.refitted, self.covariance, self.stability
         )
+        if self.between is not None:
+            lines += self.between.summary().splitlines()
         lines.append(f"time: {self.timings.get('total_s', float('nan')):.2f} s")
         return "\n".join(lines)
 

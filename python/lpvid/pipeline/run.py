@@ -9,6 +9,7 @@ then chooses a model on the path and says why.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from typing import Any
@@ -19,9 +20,8 @@ from lpvid._spread import check_executor
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
-from lpvid.errors import logger
+from lpvid.errors import ConvergenceWarning, logger
 from lpvid.fit.fits import fit_nls, raise_if_interrupted, warn_if_unconverged
-from lpvid.fit.judge import noise_slack, tied
 from lpvid.fit.memory import check_pipeline
 from lpvid.fit.results import PathResult
 from lpvid.fit.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
@@ -29,10 +29,12 @@ from lpvid.initial.candidates import candidates_of
 from lpvid.initial.choice import choose
 from lpvid.initial.local import local_models
 from lpvid.model.layout import strictly_proper
-from lpvid.pipeline.path import run_path
+from lpvid.pipeline.fewpoints import choose_route, open_between, open_routes
+from lpvid.pipeline.misfit import advice, misfit
 from lpvid.pipeline.problem import Problem, check_validation, problem_of
 from lpvid.pipeline.result import IdentifyResult, PathEntry, path_entry
-from lpvid.trust.steps import finish, stable_fit
+from lpvid.pipeline.routes import follow
+from lpvid.trust.steps import finish
 
 __all__ = [
     "DEFAULT_GAMMAS",
@@ -52,58 +54,6 @@ def _say(progress: Progress | None, message: str) -> None:
     logger.info(message)
     if progress is not None:
         progress(message)
-
-
-def _knee(entries: list[PathEntry]) -> tuple[int, str]:
-    """The knee of V_NLS against the number of groups (no validation data).
-
-    Each number of groups is represented by its most regularised entry
-    among those whose V_NLS ties with the lowest for that number
-    (:func:`lpvid.fit.judge.tied`): further down the path, fits with the same
-    groups differ by less than the noise at the data and by the slide of
-    the groups' sizes between the points. With the curve normalised to the
-    unit square (groups kept on x, V_NLS on y, falling from the simplest
-    model to the richest), the knee is the point farthest below the chord
-    between the two ends: where adding groups stops buying accuracy. When
-    the whole curve lies within the noise (the spread of V_NLS is within
-    :func:`lpvid.fit.judge.noise_slack`), the simplest model is as good as any.
-    """
-    floor = entries[0].noise_floor
-    by_groups: dict[int, int] = {}
-    for g in sorted({e.n_groups for e in entries}):
-        same = [k for k, e in enumerate(entries) if e.n_groups == g]
-        flags = tied([entries[k].vnls for k in same], floor)
-        by_groups[g] = max(
-            (k for k, f in zip(same, flags, strict=True) if f),
-            key=lambda k: (entries[k].gamma, -k),
-        )
-    ks = [by_groups[g] for g in sorted(by_groups)]
-    x = np.array([entries[k].n_groups for k in ks], dtype=float)
-    y = np.array([entries[k].vnls for k in ks])
-    if len(ks) == 1 or y.max() - y.min() <= noise_slack(floor):
-        k = ks[0]
-        return k, (
-            "no validation data; every model on the path fits within the noise "
-            "(spread of V_NLS below 2 sqrt(M)), so the simplest is kept"
-        )
-    xn = (x - x[0]) / (x[-1] - x[0])
-    yn = (y - y[-1]) / (y[0] - y[-1]) if y[0] != y[-1] else np.zeros_like(y)
-    depth = (1.0 - xn) - yn
-    k = ks[int(np.argmax(depth))]
-    return k, "no validation data; the knee of V_NLS against the number of groups kept"
-
-
-def _choose(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
-    if entries[0].validation_vnls is None:
-        return _knee(entries)
-    vals = np.array([e.validation_vnls for e in entries], dtype=float)
-    best = float(vals.min())
-    ok = [k for k in range(len(entries)) if vals[k] <= (1 + tolerance) * best]
-    k = min(ok, key=lambda i: (entries[i].n_groups, vals[i]))
-    return k, (
-        f"the simplest model whose validation V_NLS ({vals[k]:.5g}) is within "
-        f"{tolerance:.0%} of the best on the path ({best:.5g})"
-    )
 
 
 @single_blas
@@ -387,35 +337,46 @@ def _run(
         nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
         warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
         timings["nls_s"] += nls.timings["total_s"]
-    if stable:
-        nls = stable_fit(nls, data, fixed, l21.threshold, p_range, time_cost)
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
-    results, entries = run_path(
-        nls,
-        sorted(gs, reverse=True),
-        data,
+    along = dict(
         validation=validation,
         tolerance=tol,
         settings=l21,
-        fixed=fixed,
         p_range=p_range,
         stable=stable,
         time_cost=time_cost,
         say=lambda message: _say(progress, message),
         executor=executor,
     )
-    path = PathResult(results)
+    main = follow(start.name, nls, gs, data, fixed=fixed, **along)
     timings["path_s"] = time.perf_counter() - t
-    chosen, reason = _choose(entries, tol)
-    e = entries[chosen]
+    t = time.perf_counter()
+    routes, more, count = open_routes(
+        problem,
+        main,
+        local,
+        lambda c: follow(c.name, c.fit, gs, data, fixed=c.structure, **along),
+        lambda message: _say(progress, message),
+    )
+    route_index, chosen, reason, members = choose_route(routes, data, validation, tol, local)
+    route = routes[route_index]
+    route.say_warnings()
+    timings["few_points_s"] = time.perf_counter() - t
+    if route_index:
+        chosen_start = next(c for c in more if c.name == route.name)
+        start_model, start_name = chosen_start.start, chosen_start.name
+        initial_reason = f"{initial_reason}; the {route.name} route's fit was then chosen"
+    else:
+        start_model, start_name = start.start, start.name
+    e = route.entries[chosen]
     t = time.perf_counter()
     done = finish(
         e.model,
         e.gamma,
         data,
-        fixed,
+        route.fixed,
         l21.threshold,
         validation=validation,
         validation_vnls=e.validation_vnls,
@@ -430,20 +391,33 @@ def _run(
         if done.refit is None
         else path_entry(e.gamma, done.refit, data, validation, l21.threshold, time_cost)
     )
+    final = refit_entry if done.refitted and refit_entry is not None else e
+    wrong = misfit(
+        final.vnls, final.noise_floor, local, final.validation_vnls, final.validation_floor
+    )
+    if wrong:
+        reason = f"{reason}; a misfit: {wrong}"
+        warnings.warn(
+            f"identify: the model returned does not fit within the noise: {wrong}; every "
+            f"route was tried ({len(routes)} followed through the path). Try: {advice(local)}",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    between = open_between(done, members, data, l21.threshold, time_cost, counted=count is not None)
     timings["finish_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(
         model=done.model,
         chosen=chosen,
         reason=reason,
-        entries=entries,
-        initial=start.start,
-        start=start.name,
-        candidates=candidates,
+        entries=route.entries,
+        initial=start_model,
+        start=start_name,
+        candidates=candidates + more,
         initial_reason=initial_reason,
         local=local,
-        nls=nls,
-        path=path,
+        nls=route.nls,
+        path=PathResult(route.results),
         data=data,
         validation=validation,
         timings=timings,
@@ -453,4 +427,5 @@ def _run(
         refitted=done.refitted,
         covariance=done.covariance,
         stability=done.stability,
+        between=between,
     )

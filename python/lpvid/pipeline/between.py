@@ -1,0 +1,148 @@
+"""What the measured points leave open between them, for the model :func:`lpvid.identify` returns.
+
+Two things, both in :class:`Between`:
+
+- the count of :mod:`lpvid.trust.silent`: how many directions of the
+  returned model's structure the points leave open, and at least how many
+  more points would determine it;
+- a spread between the points: at every line and scheduling value, the
+  larger of the 95 % band of the covariance (the noise's part, first
+  order) and the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`:
+  the largest distance from the returned model's FRF to the FRF of any
+  other fit within the noise). Where the points determine the model the
+  band is the spread; where they do not, the committee shows what the data
+  leave to the prior.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from lpvid._checks import real_array
+from lpvid.data.frf import FrfData
+from lpvid.model.lpv import LpvModel
+from lpvid.trust.silent import SilentCount, range_grid
+from lpvid.trust.uncertainty import Covariance, band_radius
+
+__all__ = ["Between", "Member"]
+
+
+@dataclass(frozen=True, eq=False)
+class Member:
+    """A fit of the committee: an entry of one route's path.
+
+    Attributes
+    ----------
+    route : int
+        Index of its route.
+    index : int
+        Index of its entry on that route's path.
+    name : str
+        The route's start and the entry's gamma, e.g. ``"blocks:0, gamma 0.01"``.
+    model : LpvModel
+    vnls : float
+    stable : bool
+        Whether its frozen models are stable at and between the points.
+    """
+
+    route: int
+    index: int
+    name: str
+    model: LpvModel
+    vnls: float
+    stable: bool
+
+
+@dataclass(frozen=True, eq=False)
+class Between:
+    """What the measured points leave open between them (module notes).
+
+    Attributes
+    ----------
+    model : LpvModel
+        The model :func:`lpvid.identify` returned.
+    count : SilentCount or None
+        Directions of its structure the points leave open; None when not
+        counted (:attr:`note` says why).
+    members : list of Member
+        The other fits within the noise that the pipeline made (empty when
+        it followed one route only).
+    covariance : Covariance or None
+        The returned model's covariance.
+    data : FrfData
+        The identification data.
+    note : str
+        Why the count is missing, when it is.
+    """
+
+    model: LpvModel
+    count: SilentCount | None
+    members: list[Member] = field(default_factory=list)
+    covariance: Covariance | None = None
+    data: FrfData | None = field(default=None, repr=False)
+    note: str = ""
+
+    @property
+    def determined(self) -> bool | None:
+        """Whether the points determine the structure between them (None: not counted)."""
+        return None if self.count is None else self.count.determined
+
+    def spread(self, freqs_hz: ArrayLike, p: ArrayLike, level: float = 0.95) -> NDArray:
+        """The spread around ``model.frf(freqs_hz, p)``: shape ``(M, F, l, r)`` (module notes).
+
+        The larger, entry by entry, of the covariance's band of coverage
+        ``level`` and the largest distance to another fit within the noise.
+        """
+        f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
+        G = self.model.frf(f, p)
+        out = np.zeros(G.shape)
+        if self.covariance is not None:
+            out = band_radius(level) * self.covariance.frf_std(f, p)
+        for m in self.members:
+            out = np.maximum(out, np.abs(m.model.frf(f, p) - G))
+        return out
+
+    def worst(self) -> tuple[float, NDArray[np.float64]]:
+        """The largest relative spread over the range, and where.
+
+        On the data's lines and the grid of :func:`lpvid.trust.silent.range_grid`:
+        ``max_p ||spread(p)|| / ||G(p)||`` (Frobenius norms over every line,
+        output and input) and the ``p`` of that maximum.
+        """
+        data = self.data
+        if data is None:
+            raise ValueError("between: has no data to take the range and lines from")
+        grid = range_grid(self.model, data)
+        p = grid[:, 0] if grid.shape[1] == 1 else grid
+        s = self.spread(data.freqs_hz, p)
+        G = self.model.frf(data.freqs_hz, p)
+        rel = np.linalg.norm(s.reshape(len(grid), -1), axis=1) / np.maximum(
+            np.linalg.norm(G.reshape(len(grid), -1), axis=1), np.finfo(float).tiny
+        )
+        k = int(np.argmax(rel))
+        return float(rel[k]), grid[k]
+
+    def summary(self) -> str:
+        """A few lines for people."""
+        lines = []
+        if self.count is not None:
+            lines.append(f"between the points: {self.count.describe()}")
+        else:
+            lines.append(f"between the points: not counted ({self.note})")
+        if self.members:
+            lines.append(
+                f"  {len(self.members)} other fit(s) within the noise, from "
+                f"{len({m.name.split(',')[0] for m in self.members})} route(s); where they "
+                "disagree with the model returned, the data are silent"
+            )
+        if self.data is not None and (self.covariance is not None or self.members):
+            rel, where = self.worst()
+            at = ", ".join(f"{x:.4g}" for x in where)
+            lines.append(
+                f"  largest relative spread between the points {rel:.3g} (at p = {at}): "
+                "measuring there would say most (lpvid.next_points)"
+            )
+        return "\n".join(lines)

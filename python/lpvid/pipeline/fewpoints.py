@@ -1,0 +1,333 @@
+"""When the measured points leave the chosen structure open: a committee of fits and its consensus.
+
+With few measured points the data leave a family of models that fit every
+point within the noise and differ between them (:mod:`lpvid.trust.silent`
+counts the directions they leave open). Without validation data to judge
+them, :func:`lpvid.identify` then follows more routes than the chosen
+start's: the blocks route (:mod:`lpvid.initial.blocks`: modal form held,
+which removes the couplings between modes that no point sees), from the
+best-determined point and from the ends of the range. After a misfit
+(:mod:`lpvid.pipeline.misfit`), with or without validation data, it
+follows the blocks route and the global start from every point. Every
+entry of every path that fits the data within the noise is a member of
+the *committee*:
+
+    V_NLS <= max(best V_NLS, M) + 2 sqrt(M)
+
+(``M`` complex residuals, :func:`lpvid.fit.judge.noise_slack`; the floor
+``M`` enters so that a family of over-fitted models, all below the floor,
+does not shut out one that fits as the truth would).
+
+**The rule.** Without validation data, the model returned is the
+committee's consensus: of the routes' own choices (each path's entry by
+its knee, :func:`lpvid.pipeline.routes.path_choice`) that are members,
+the one whose frozen FRF over the range is nearest the members' (the least
+median, over the other members, of the largest relative distance over a
+grid of the range, :func:`distances`), among the members whose frozen
+models are stable between the points when there are any (every member
+competes when no route's choice is one). Medians within
+:data:`CONSENSUS_TIE` of the least tie, and the first in the routes' order
+wins (the chosen start's route first, then the blocks routes). With
+validation data (routes opened by a misfit) the judge is the validation
+data, as on one path: the simplest entry (fewest groups) whose validation
+V_NLS is within ``tolerance`` of the best of every route, those stable
+between the points first.
+
+Where the committee disagrees between the points is where the data are
+silent: :class:`lpvid.pipeline.between.Between` turns that into a spread,
+and :func:`lpvid.next_points` measures there.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from lpvid.data.frf import FrfData
+from lpvid.data.schedule import between_points
+from lpvid.fit.judge import noise_slack
+from lpvid.initial.blocks import block_candidates
+from lpvid.initial.candidates import Candidate, fitted_candidate
+from lpvid.initial.globalstart import constant_start, free_groups
+from lpvid.initial.localmodels import LocalModels
+from lpvid.model.frozen import frozen_stable
+from lpvid.model.layout import fixed_mask
+from lpvid.model.lpv import LpvModel
+from lpvid.pipeline.between import Between, Member
+from lpvid.pipeline.misfit import misfit
+from lpvid.pipeline.routes import Route
+from lpvid.trust.silent import SilentCount, range_grid, seen_covariance, silent_directions
+
+__all__ = [
+    "CONSENSUS_TIE",
+    "choose_route",
+    "committee",
+    "consensus",
+    "count_silent",
+    "distances",
+    "open_between",
+    "open_routes",
+    "validated",
+]
+
+#: Median distances within this share of the least count as equal (the
+#: first member in the routes' order wins).
+CONSENSUS_TIE = 0.01
+
+
+def committee(routes: Sequence[Route], data: FrfData) -> list[Member]:
+    """Every entry of every route that fits the data within the noise (module notes)."""
+    floor = data.n_residuals
+    best = min(e.vnls for r in routes for e in r.entries)
+    limit = max(best, floor) + noise_slack(floor)
+    between = between_points(data.p)
+    out = []
+    for i, r in enumerate(routes):
+        for k, e in enumerate(r.entries):
+            if e.vnls <= limit:
+                name = f"{r.name}, gamma {e.gamma:g}"
+                stable = frozen_stable(e.model, between)
+                out.append(Member(i, k, name, e.model, float(e.vnls), stable))
+    return out
+
+
+def distances(models: Sequence[LpvModel], data: FrfData) -> NDArray[np.float64]:
+    """The largest relative distance between the frozen FRFs of every two models over the range.
+
+    On the data's lines and a grid over the range (:func:`lpvid.trust.silent.range_grid`):
+    ``max_p ||G_a(p) - G_b(p)|| / s(p)``, Frobenius norms over every line,
+    output and input, ``s(p)`` the mean of the models' norms at ``p``.
+    """
+    grid = range_grid(models[0], data)
+    p = grid[:, 0] if grid.shape[1] == 1 else grid
+    G = np.array([m.frf(data.freqs_hz, p).reshape(len(grid), -1) for m in models])
+    scale = np.mean(np.linalg.norm(G, axis=2), axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    diff = np.linalg.norm(G[:, None] - G[None, :], axis=3) / scale
+    return diff.max(axis=2)
+
+
+def consensus(
+    members: Sequence[Member], data: FrfData, choices: Sequence[tuple[int, int]] = ()
+) -> tuple[Member, str]:
+    """The committee's consensus (module notes), and why.
+
+    ``choices`` are the ``(route, index)`` of every route's own choice on its
+    path: the members among them compete (each path's choice of simplicity
+    stands), scored against every member; all members compete when none of
+    them is one.
+    """
+    if len(members) == 1:
+        return members[0], "the only fit within the noise"
+    pool = [m for m in members if m.stable] or list(members)
+    if len(pool) == 1:
+        return pool[0], "the only fit within the noise stable between the points"
+    chosen = set(choices)
+    compete = [k for k, m in enumerate(pool) if (m.route, m.index) in chosen] or list(
+        range(len(pool))
+    )
+    D = distances([m.model for m in pool], data)
+    med = np.array([np.median(np.delete(D[k], k)) for k in compete])
+    least = float(med.min())
+    j = int(np.flatnonzero(med <= least * (1 + CONSENSUS_TIE))[0])
+    which = "stable " if len(pool) < len(members) else ""
+    return pool[compete[j]], (
+        f"of the routes' choices, the one nearest the {len(pool)} {which}fits within the noise "
+        f"of every route between the points (median distance {med[j]:.3g}): their consensus"
+    )
+
+
+def validated(routes: Sequence[Route], tolerance: float, data: FrfData) -> tuple[int, int, str]:
+    """With validation data: the simplest entry of every route within ``tolerance`` of the best.
+
+    Entries whose frozen models are stable between the points come first
+    when any is within ``tolerance``.
+    """
+    entries = [(i, k, e) for i, r in enumerate(routes) for k, e in enumerate(r.entries)]
+    vals = np.array([float(e.validation_vnls) for _, _, e in entries])  # type: ignore[arg-type]
+    best = float(vals.min())
+    ok = [j for j in range(len(entries)) if vals[j] <= (1 + tolerance) * best]
+    between = between_points(data.p)
+    stable = [j for j in ok if frozen_stable(entries[j][2].model, between)]
+    j = min(stable or ok, key=lambda j: (entries[j][2].n_groups, vals[j], j))
+    i, k, _ = entries[j]
+    which = "stable " if stable else ""
+    return (
+        i,
+        k,
+        (
+            f"the simplest {which}model of every route whose validation V_NLS ({vals[j]:.5g}) is "
+            f"within {tolerance:.0%} of the best ({best:.5g})"
+        ),
+    )
+
+
+#: Free parameters beyond which the silent directions are not counted (the
+#: count takes dense eigendecompositions of about that size).
+MAX_COUNTED = 2500
+
+
+def count_silent(
+    model: LpvModel, data: FrfData, fixed: Any, threshold: float, time_cost: Any = None
+) -> tuple[SilentCount | None, str]:
+    """:func:`lpvid.trust.silent.silent_directions`, or None and why it was not counted."""
+    if time_cost is not None:
+        return None, "the time records see the model between the points"
+    free = int((~fixed_mask(model, fixed)).sum())
+    if free > MAX_COUNTED:
+        return None, f"{free} free parameters, more than {MAX_COUNTED} (the count is dense)"
+    return silent_directions(model, data, fixed, threshold=threshold), ""
+
+
+def open_routes(
+    problem: Any,
+    main: Route,
+    local: LocalModels,
+    follow_start: Callable[[Candidate], Route],
+    say: Callable[[str], Any],
+) -> tuple[list[Route], list[Candidate], SilentCount | None]:
+    """The routes to choose among, the extra candidates, and the count that decided.
+
+    Only ``main`` when it is no misfit (:mod:`lpvid.pipeline.misfit`) and
+    the points determine its chosen structure (or the count cannot be
+    made) or validation data judge what lies between them.
+    When the points leave the structure open: also the blocks route, from
+    every start of :func:`lpvid.initial.blocks.start_points`. After a
+    misfit: the blocks route from every point and the global start
+    (``"global:all"``) from every point. Of the extra starts, those within
+    the noise of the committee (module notes) are followed through the path.
+    """
+    data, validation = problem.data, problem.validation
+    threshold = problem.settings.path.l21.threshold
+    count, _ = count_silent(main.entry.model, data, main.fixed, threshold, problem.time_data)
+    e = main.entry
+    wrong = misfit(e.vnls, e.noise_floor, local, e.validation_vnls, e.validation_floor)
+    determined = count is None or count.determined
+    # With validation data they judge what lies between the points: only a misfit opens routes.
+    if problem.time_data is not None or (not wrong and (determined or validation is not None)):
+        return [main], [], count
+    starts = problem.settings.starts
+    if wrong:
+        say(f"misfit: {wrong}; the blocks route and global starts from every point")
+        points: Sequence[int] | None = range(data.n_points)
+    else:
+        assert count is not None
+        say(f"the points leave the chosen structure open: {count.describe()}; the blocks route too")
+        points = None
+    more = block_candidates(
+        data,
+        problem.basis,
+        problem.fixed,
+        local,
+        validation=validation,
+        points=points,
+        max_iter=starts.max_iter,
+        ftol=starts.ftol,
+    )
+    if wrong:
+        more += global_everywhere(problem, local)
+    floor = data.n_residuals
+    best = min([e.vnls for e in main.entries] + [c.vnls for c in more])
+    limit = max(best, floor) + noise_slack(floor)
+    routes = [main]
+    for c in more:
+        say(f"  {c.name}: V_NLS {c.vnls:.5g}" + ("" if c.stable else ", unstable"))
+        if c.vnls <= limit or (wrong and c.vnls < e.vnls):
+            routes.append(follow_start(c))
+    return routes, more, count
+
+
+def global_everywhere(problem: Any, local: LocalModels) -> list[Candidate]:
+    """The global start with every group freed at once, from the local model of every point."""
+    data, starts = problem.data, problem.settings.starts
+    out = []
+    for q in range(data.n_points):
+        t0 = time.perf_counter()
+        const = constant_start(
+            data,
+            problem.order,
+            problem.basis,
+            problem.fixed,
+            local=local,
+            point=q,
+            max_iter=starts.max_iter,
+            ftol=starts.ftol,
+        )
+        _, fit, start = free_groups(
+            const, data, problem.fixed, "all", max_iter=starts.max_iter, ftol=starts.ftol
+        )
+        note = f"constant model from local model {q}, then every group freed"
+        seconds = time.perf_counter() - t0
+        out.append(
+            fitted_candidate(
+                f"global:all@{q}", fit, start, data, problem.validation, seconds=seconds, note=note
+            )
+        )
+    return out
+
+
+def choose_route(
+    routes: Sequence[Route],
+    data: FrfData,
+    validation: FrfData | None,
+    tolerance: float,
+    local: LocalModels,
+) -> tuple[int, int, str, list[Member]]:
+    """The route and entry returned, why, and the other members of the committee.
+
+    Members that are misfits (:func:`lpvid.pipeline.misfit.misfit`) leave the
+    committee; when none is left, the routes' own choices compete on V_NLS.
+    """
+    main = routes[0]
+    if len(routes) == 1:
+        return 0, main.chosen, main.reason, []
+    members = [m for m in committee(routes, data) if not misfit(m.vnls, data.n_residuals, local)]
+    if validation is not None:
+        i, k, reason = validated(routes, tolerance, data)
+    elif not members:
+        i = min(range(len(routes)), key=lambda j: (routes[j].entry.vnls, j))
+        k = routes[i].chosen
+        reason = f"{routes[i].reason}; no route fits within the noise: the lowest V_NLS of them"
+    else:
+        choices = [(i, r.chosen) for i, r in enumerate(routes)]
+        pick, reason = consensus(members, data, choices)
+        i, k = pick.route, pick.index
+    others = [m for m in members if (m.route, m.index) != (i, k)]
+    return i, k, reason, others
+
+
+def open_between(
+    done: Any,
+    members: list[Member],
+    data: FrfData,
+    threshold: float,
+    time_cost: Any,
+    *,
+    counted: bool,
+) -> Between:
+    """The :class:`~lpvid.pipeline.between.Between` of the model returned.
+
+    Its band is the covariance on the directions the points see
+    (:func:`lpvid.trust.silent.seen_covariance`); the silent ones are the
+    committee's (``members``). Not counted (``counted`` False, the time
+    records, or a structure too large): the covariance of ``done`` as it is.
+    """
+    count, note = (
+        (None, "")
+        if not counted
+        else count_silent(done.model, data, done.fixed, threshold, time_cost)
+    )
+    band = done.covariance
+    if count is not None and band is not None:
+        theta, _, _ = seen_covariance(done.model, data, done.fixed, threshold=threshold)
+        band = replace(band, theta=theta, n_unidentified=band.n_unidentified + count.silent)
+    elif not counted:
+        note = "the chosen start's structure could not be counted"
+    return Between(
+        model=done.model, count=count, members=members, covariance=band, data=data, note=note
+    )

@@ -1,0 +1,78 @@
+"""A model far above its noise floor while the local models fit: tried harder, then said.
+
+The local models fit each point with the most freedom an LTI model of the
+order has; an LPV model that fits every point sits near their total, a
+little above (it has fewer parameters per point). One more than
+:data:`MISFIT` times above the larger of that total and the floor did not
+find the fit the data hold (a start in the wrong basin, a structure the
+points do not support), or, on validation data, does not hold between the
+points. :func:`lpvid.identify` then tries harder (the blocks route from
+every point and global starts from every point, see
+:func:`lpvid.pipeline.fewpoints.open_routes`) and, when the model returned
+is still that far, warns with the figures and what to try; its summary
+says so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lpvid.initial.localmodels import LocalModels
+
+__all__ = ["MISFIT", "advice", "local_level", "misfit"]
+
+#: A model whose V_NLS is more than this many times the larger of its noise
+#: floor and the local models' total is a misfit (on validation data: more
+#: than this many times its floor).
+MISFIT = 2.0
+
+
+def local_level(local: LocalModels) -> float:
+    """The local models' V_NLS over their noise floor, all points together (nan if unknown)."""
+    floor = float(np.sum(local.noise_floor))
+    total = float(np.sum(local.vnls))
+    return total / floor if floor > 0 and np.isfinite(total) else float("nan")
+
+
+def misfit(
+    vnls: float,
+    floor: int,
+    local: LocalModels,
+    validation_vnls: float | None = None,
+    validation_floor: int | None = None,
+) -> str | None:
+    """What is wrong, in words, when a model is a misfit (module notes); None when it is not."""
+    level = local_level(local)
+    reference = max(1.0, level) if np.isfinite(level) else 1.0
+    ratio = vnls / floor
+    if ratio > MISFIT * reference:
+        return (
+            f"V_NLS is {ratio:.3g} times its noise floor on the identification data, where "
+            f"the local models fit at {level:.3g}"
+        )
+    if validation_vnls is not None and validation_floor:
+        vratio = validation_vnls / validation_floor
+        if vratio > MISFIT * reference:
+            return (
+                f"V_NLS is {vratio:.3g} times its noise floor on the validation data "
+                f"({ratio:.3g} on the identification data, the local models {level:.3g})"
+            )
+    return None
+
+
+def advice(local: LocalModels) -> str:
+    """What to try, in words, after a misfit the pipeline could not cure."""
+    tips = []
+    diag = local.consistency
+    if diag is not None and diag.inconsistent:
+        pts = ", ".join(str(q) for q in diag.inconsistent)
+        tips.append(
+            f"the local models at point(s) {pts} have another pole structure than their "
+            "neighbours (lpvid.consistency): a measurement between them, or local models "
+            "by continuation (lpvid.initial.continue_local), would tell which is right"
+        )
+    tips.append(
+        "more measured points where the spread is largest (lpvid.next_points), a higher "
+        "basis degree or order (lpvid.select), or validation data"
+    )
+    return "; ".join(tips)

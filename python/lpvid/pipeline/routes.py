@@ -1,0 +1,174 @@
+"""A route through the pipeline: a refined start, its l2,1 path and the choice on that path.
+
+:func:`follow` runs the path of :func:`lpvid.pipeline.path.run_path` from one
+refined start and chooses an entry on it (:func:`path_choice`). The
+pipeline follows the chosen start's route; when the measured points leave
+the chosen structure open it follows other routes too
+(:mod:`lpvid.pipeline.fewpoints`).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lpvid.data.frf import FrfData
+from lpvid.fit.judge import noise_slack, tied
+from lpvid.fit.results import FitResult, L21Result
+from lpvid.fit.settings import L21Settings
+from lpvid.fit.timecost import TimeCost
+from lpvid.pipeline.path import run_path
+from lpvid.pipeline.result import PathEntry
+from lpvid.trust.steps import stable_fit
+
+__all__ = ["Route", "follow", "knee", "path_choice"]
+
+
+@dataclass
+class Route:
+    """A start followed through the path, and the entry chosen on it.
+
+    Attributes
+    ----------
+    name : str
+        The start's name (see :class:`lpvid.initial.Candidate`).
+    nls : FitResult
+        The refined start (the unregularised fit).
+    results : list of L21Result
+        The path's fits, largest gamma first.
+    entries : list of PathEntry
+        The unregularised model and the path's (what ``IdentifyResult.entries`` holds).
+    chosen : int
+        The entry chosen on this path (:func:`path_choice`).
+    reason : str
+        Why.
+    fixed : object
+        What the route holds fixed: the problem's ``fixed``, or the start's
+        structure mask (:attr:`lpvid.initial.Candidate.structure`).
+    warned : list of warnings.WarningMessage
+        What its fits warned (held back: only the route returned says it,
+        :meth:`say_warnings`).
+    """
+
+    name: str
+    nls: FitResult
+    results: list[L21Result]
+    entries: list[PathEntry]
+    chosen: int
+    reason: str
+    fixed: Any
+    warned: list[warnings.WarningMessage] = field(default_factory=list)
+
+    def say_warnings(self) -> None:
+        """Warn what the route's fits warned."""
+        for w in self.warned:
+            warnings.warn(w.message, w.category, stacklevel=4)
+
+    @property
+    def entry(self) -> PathEntry:
+        """The chosen entry."""
+        return self.entries[self.chosen]
+
+
+def follow(
+    name: str,
+    nls: FitResult,
+    gammas: Sequence[float],
+    data: FrfData,
+    *,
+    validation: FrfData | None,
+    tolerance: float,
+    settings: L21Settings,
+    fixed: Any,
+    p_range: Any,
+    stable: bool,
+    time_cost: TimeCost | None,
+    say: Callable[[str], Any],
+    executor: Executor | None,
+) -> Route:
+    """The path from the refined start ``nls`` and the choice on it.
+
+    Its fits' warnings are held in :attr:`Route.warned`, for the route returned to say.
+    """
+    with warnings.catch_warnings(record=True) as warned:
+        warnings.simplefilter("always")
+        if stable:
+            nls = stable_fit(nls, data, fixed, settings.threshold, p_range, time_cost)
+        results, entries = run_path(
+            nls,
+            sorted(gammas, reverse=True),
+            data,
+            validation=validation,
+            tolerance=tolerance,
+            settings=settings,
+            fixed=fixed,
+            p_range=p_range,
+            stable=stable,
+            time_cost=time_cost,
+            say=say,
+            executor=executor,
+        )
+    chosen, reason = path_choice(entries, tolerance)
+    return Route(name, nls, results, entries, chosen, reason, fixed, list(warned))
+
+
+def knee(entries: list[PathEntry]) -> tuple[int, str]:
+    """The knee of V_NLS against the number of groups (no validation data).
+
+    Each number of groups is represented by its most regularised entry
+    among those whose V_NLS ties with the lowest for that number
+    (:func:`lpvid.fit.judge.tied`): further down the path, fits with the same
+    groups differ by less than the noise at the data and by the slide of
+    the groups' sizes between the points. With the curve normalised to the
+    unit square (groups kept on x, V_NLS on y, falling from the simplest
+    model to the richest), the knee is the point farthest below the chord
+    between the two ends: where adding groups stops buying accuracy. When
+    the whole curve lies within the noise (the spread of V_NLS is within
+    :func:`lpvid.fit.judge.noise_slack`), the simplest model is as good as any.
+    """
+    floor = entries[0].noise_floor
+    by_groups: dict[int, int] = {}
+    for g in sorted({e.n_groups for e in entries}):
+        same = [k for k, e in enumerate(entries) if e.n_groups == g]
+        flags = tied([entries[k].vnls for k in same], floor)
+        by_groups[g] = max(
+            (k for k, f in zip(same, flags, strict=True) if f),
+            key=lambda k: (entries[k].gamma, -k),
+        )
+    ks = [by_groups[g] for g in sorted(by_groups)]
+    x = np.array([entries[k].n_groups for k in ks], dtype=float)
+    y = np.array([entries[k].vnls for k in ks])
+    if len(ks) == 1 or y.max() - y.min() <= noise_slack(floor):
+        k = ks[0]
+        return k, (
+            "no validation data; every model on the path is within the noise of the best "
+            "(spread of V_NLS below 2 sqrt(M)), so the simplest is kept"
+        )
+    xn = (x - x[0]) / (x[-1] - x[0])
+    yn = (y - y[-1]) / (y[0] - y[-1]) if y[0] != y[-1] else np.zeros_like(y)
+    depth = (1.0 - xn) - yn
+    k = ks[int(np.argmax(depth))]
+    return k, "no validation data; the knee of V_NLS against the number of groups kept"
+
+
+def path_choice(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
+    """The entry chosen on a path, and why.
+
+    With validation data, the simplest entry whose validation V_NLS is
+    within ``tolerance`` of the best on the path; without, :func:`knee`.
+    """
+    if entries[0].validation_vnls is None:
+        return knee(entries)
+    vals = np.array([e.validation_vnls for e in entries], dtype=float)
+    best = float(vals.min())
+    ok = [k for k in range(len(entries)) if vals[k] <= (1 + tolerance) * best]
+    k = min(ok, key=lambda i: (entries[i].n_groups, vals[i]))
+    return k, (
+        f"the simplest model whose validation V_NLS ({vals[k]:.5g}) is within "
+        f"{tolerance:.0%} of the best on the path ({best:.5g})"
+    )

@@ -1,0 +1,194 @@
+"""Few measured points: the committee, its consensus, the spread, misfits (issue 58).
+
+The rules are checked on constructed committees whose answer is known (a
+stand-in model a known distance from the others), the pipeline on the
+model-reduction community's synthetic system (:func:`lpvid.testing.synthetic_parametric`)
+against its known truth; ``benches/bench_few.py`` measures the same over
+many draws and placements.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid.pipeline import fewpoints, misfit
+from lpvid.pipeline.between import Between, Member
+from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
+
+TRUE = synthetic_parametric(10)
+FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
+FIXED = {"D": True}
+UNSEEN = np.linspace(0.03, 0.99, 20)
+
+
+def _data(p, seed=0):
+    return noisy_data(TRUE, p, FREQS, np.random.default_rng(seed), 0.01)
+
+
+def _shifted(model, scale):
+    """The model with its A(1) (the poles' move over the range) scaled: FRF moved between points."""
+    A = model.A.copy()
+    A[1] *= scale
+    return lpvid.LpvModel(A, model.B, model.C, model.D, basis=model.basis, Ts=model.Ts)
+
+
+def _member(model, k, stable=True, route=0):
+    return Member(route, k, f"stand-in {k}", model, 1.0, stable)
+
+
+def test_the_consensus_is_the_member_nearest_the_others():
+    data = _data([0.02, 0.5, 1.0])
+    scales = [1.0, 1.002, 0.998, 1.5]  # the truth among two near ones and an outlier
+    members = [_member(_shifted(TRUE, s), k) for k, s in enumerate(scales)]
+    pick, why = fewpoints.consensus(members, data)
+    assert pick is members[0] and "nearest the 4" in why
+    # with the routes' choices given, only they compete, scored against every member
+    assert fewpoints.consensus(members, data, [(0, 3), (0, 1)])[0] is members[1]
+    # the distances are those of the FRFs over the range: symmetric, zero on the diagonal
+    D = fewpoints.distances([m.model for m in members], data)
+    assert np.allclose(D, D.T) and np.all(np.diag(D) == 0)
+    assert D[0, 3] > 3 * D[0, 1]
+
+
+def test_unstable_members_leave_the_consensus_when_stable_ones_exist():
+    data = _data([0.02, 0.5, 1.0])
+    members = [_member(_shifted(TRUE, s), k) for k, s in enumerate([1.0, 1.02, 0.98])]
+    members[0] = dataclasses.replace(members[0], stable=False)
+    pick, why = fewpoints.consensus(members, data)
+    assert pick is not members[0] and "stable" in why
+
+
+def test_near_ties_go_to_the_first_member():
+    data = _data([0.02, 0.5, 1.0])
+    a, b = _member(TRUE, 0), _member(_shifted(TRUE, 1.0), 1)  # the same FRF twice
+    assert fewpoints.consensus([a, b], data)[0] is a
+    assert fewpoints.consensus([b, a], data)[0] is b
+
+
+def test_the_spread_is_the_band_or_the_farthest_member_whichever_is_larger():
+    data = _data(np.linspace(0.02, 1, 5))
+    cov = lpvid.covariance(TRUE, data, FIXED, warn=False)
+    far, near = _shifted(TRUE, 1.1), _shifted(TRUE, 1.001)
+    between = Between(TRUE, None, [_member(far, 0), _member(near, 1)], cov, data)
+    p = np.array([0.3, 0.7])
+    s = between.spread(FREQS, p)
+    band = lpvid.trust.uncertainty.band_radius(0.95) * cov.frf_std(FREQS, p)
+    dev = np.abs(far.frf(FREQS, p) - TRUE.frf(FREQS, p))
+    assert np.allclose(s, np.maximum(band, dev))
+    alone = Between(TRUE, None, [], cov, data)
+    assert np.allclose(alone.spread(FREQS, p), band)
+    rel, where = between.worst()
+    assert rel > 0 and TRUE.p_range[0] <= where[0] <= TRUE.p_range[1]
+
+
+def test_misfits_are_told_by_the_local_models_level():
+    data = _data([0.02, 0.5, 1.0])
+    local = lpvid.identify_lti(data, 10, strictly_proper=True)
+    level = misfit.local_level(local)
+    floor = data.n_residuals
+    assert 0.5 < level < 1.2
+    assert misfit.misfit(1.1 * floor, floor, local) is None
+    assert "times its noise floor" in misfit.misfit(2.5 * floor, floor, local)
+    said = misfit.misfit(floor, floor, local, validation_vnls=300.0, validation_floor=100)
+    assert "validation" in said
+    assert misfit.misfit(floor, floor, local, validation_vnls=150.0, validation_floor=100) is None
+
+
+@pytest.fixture(scope="module")
+def four():
+    """Four points of the synthetic system, the ends and two between."""
+    data = _data([0.02, 0.31, 0.74, 1.0], seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        return data, lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
+
+
+def test_with_four_points_the_model_is_right_between_them_and_says_what_is_open(four):
+    data, res = four
+    err = worst_relative_error(res.model, TRUE, FREQS, UNSEEN)
+    assert err < 0.02  # the full structure's fits alone: 0.05-1 on such draws
+    b = res.between
+    assert b is not None and b.count is not None and b.members
+    assert "between the points" in res.summary()
+    # the spread covers the truth at nine frequencies in ten, at every unseen point
+    s = b.spread(FREQS, UNSEEN)
+    inside = np.abs(res.model.frf(FREQS, UNSEEN) - TRUE.frf(FREQS, UNSEEN)) <= s
+    assert inside.mean() >= 0.9
+
+
+def test_the_measurement_plan_goes_where_the_fits_disagree(four):
+    data, res = four
+    s = lpvid.suggest_points(res, k=2)
+    assert s.criterion == "committee"
+    rel = fewpoints_relative(res.between, s.grid)
+    # the first point is where the spread is largest, away from the measured points
+    first = float(s.points[0])
+    assert np.min(np.abs(first - data.p)) > 0.02
+    assert np.interp(first, s.grid, rel) >= 0.5 * rel.max()
+    assert s.variance[1] < s.variance[0] and s.points[1] != s.points[0]
+
+
+def fewpoints_relative(between, grid):
+    G = between.model.frf(FREQS, grid)
+    sp = between.spread(FREQS, grid)
+    return np.linalg.norm(sp.reshape(len(grid), -1), axis=1) / np.linalg.norm(
+        G.reshape(len(grid), -1), axis=1
+    )
+
+
+def test_enough_points_leave_nothing_open_and_follow_one_route():
+    data = _data(np.linspace(0.02, 1, 9), seed=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
+    assert res.between.determined and not res.between.members
+    assert not res.start.startswith("blocks")
+    assert worst_relative_error(res.model, TRUE, FREQS, UNSEEN) < 0.02
+
+
+def test_the_blocks_route_fits_three_points_and_is_right_between_them():
+    from lpvid.initial.blocks import block_candidates
+
+    data = _data([0.02, 0.45, 1.0], seed=5)
+    local = lpvid.identify_lti(data, 10, strictly_proper=True)
+    cands = block_candidates(data, TRUE.basis, FIXED, local)
+    assert cands and all(c.name.startswith("blocks:") for c in cands)
+    assert all(c.structure is not None and c.structure.shape == TRUE.theta.shape for c in cands)
+    best = min(cands, key=lambda c: c.vnls)
+    assert best.vnls <= 1.2 * data.n_residuals  # within the noise, with the form held
+    held = best.model.A[:, ~np.kron(np.eye(5), np.ones((2, 2))).astype(bool)]
+    assert np.all(held == 0)
+    # the full structure's fits at three points are off by 0.5 to 20 on such draws
+    assert worst_relative_error(best.model, TRUE, FREQS, UNSEEN) < 0.1
+
+
+def test_with_validation_data_open_directions_alone_open_no_route():
+    """The validation data judge what lies between the points; only a misfit opens routes."""
+    true, f = lpvid.testing.one_group_lpv(0), np.linspace(2, 100, 120)
+    data = noisy_data(true, [0.0, 0.3, 0.7, 1.0], f, np.random.default_rng(4), 0.01)
+    val = noisy_data(true, [0.5], f, np.random.default_rng(9), 0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        res = lpvid.identify(data, 10, true.basis, fixed=FIXED, validation=val)
+    assert res.between.count.silent > 0  # the points leave directions open, and it is said
+    assert not res.start.startswith("blocks") and not res.between.members
+    assert res.final.validation_vnls < misfit.MISFIT * res.final.validation_floor
+
+
+def test_a_basis_that_cannot_follow_the_points_is_a_misfit_said_and_warned():
+    """Modes whose frequencies move with s^2, fitted over an affine basis at four points."""
+    true = lpvid.testing.modal_lpv([[10.0, 2.0, 6.0], [30.0, 0.0, -10.0]], damping=0.03, l=1)
+    f = np.linspace(4, 50, 80)
+    data = noisy_data(true, [0.0, 0.35, 0.65, 1.0], f, np.random.default_rng(1), 0.01)
+    with pytest.warns(lpvid.ConvergenceWarning, match="does not fit within the noise") as got:
+        res = lpvid.identify(data, 4, lpvid.Polynomial(1, domain=(0.0, 1.0)))
+    said = [str(w.message) for w in got if "does not fit" in str(w.message)]
+    assert "times its noise floor" in said[0] and "Try:" in said[0]
+    assert "misfit" in res.reason
+    assert res.final.vnls > misfit.MISFIT * data.n_residuals
+    assert any(c.name.startswith("global:all@") for c in res.candidates)  # tried harder
