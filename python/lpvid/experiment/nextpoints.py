@@ -38,13 +38,23 @@ repeated candidates count once.
 sigma at the measured point nearest ``p_c`` (each scheduling parameter
 scaled to its range), or what the caller gives.
 
-**What it cannot see.** ``C`` is the covariance of the model on its
-support (dropped groups held at zero) on the directions the data
-determine: directions the rank rule of :mod:`lpvid.trust.uncertainty`
-leaves out (with ``N = Nb + 1`` points, transformations that differ from
-point to point) count as known here. The suggestion shrinks the band the
-covariance shows, not the model's freedom between the points that no
-band shows.
+**What it cannot see, and the committee that can.** ``C`` is the
+covariance of the model on its support (dropped groups held at zero) on
+the directions the data determine: directions the measured points leave
+open (:mod:`lpvid.trust.silent`) count as known here. When the points
+leave the model's structure open, :func:`lpvid.identify` keeps the other
+fits within the noise (:attr:`lpvid.IdentifyResult.between`), and where
+they disagree is where the data are silent. Then the criterion is the
+*committee's*: the relative spread ``||s(p)|| / ||G_m(p)||`` of
+:meth:`lpvid.pipeline.between.Between.spread` (the larger of the band and
+the committee's disagreement) at every candidate, damped near the points
+measured or already chosen by ``min(1, d / h)``, ``d`` the distance to the
+nearest of them and ``h`` the spacing the points will have (the range
+over ``N + k``, every parameter scaled to its range): the largest is
+taken, ``k > 1`` greedily. ``band`` is that relative spread over the
+grid, ``band_after`` the same damped by every suggested point (a
+measurement settles the spread around it), ``variance`` the mean square
+of each.
 """
 
 from __future__ import annotations
@@ -61,16 +71,22 @@ from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import range_pairs
 from lpvid.experiment.design import (
+    TIE,
     GridParts,
     factor,
-    frozen_grams,
     greedy_update,
     relative_band,
     target,
 )
 from lpvid.fit.judge import identify_range
 from lpvid.pipeline.result import IdentifyResult
-from lpvid.trust.uncertainty import Covariance, _lti_index, band_radius, coefficient_weights
+from lpvid.trust.uncertainty import (
+    Covariance,
+    _lti_index,
+    band_radius,
+    coefficient_weights,
+    frozen_grams,
+)
 
 __all__ = ["Suggestion", "next_points", "suggest_points"]
 
@@ -102,6 +118,9 @@ class Suggestion:
         now and after each suggested point.
     p_range : tuple or list of tuple
         The scheduling range (the model's, else the data's).
+    criterion : str
+        ``"covariance"`` (the bands' reduction) or ``"committee"`` (where
+        the fits within the noise disagree most; module notes).
     """
 
     points: NDArray[np.float64]
@@ -111,19 +130,27 @@ class Suggestion:
     band_after: NDArray[np.float64]
     variance: NDArray[np.float64]
     p_range: Any
+    criterion: str = "covariance"
 
     def summary(self) -> str:
         """One line per suggested point with the predicted RMS band over the range."""
-        radius = band_radius(0.95)
+        committee = self.criterion == "committee"
+        radius = 1.0 if committee else band_radius(0.95)
         rms = radius * np.sqrt(np.maximum(self.variance, 0.0))
+        what = (
+            ", where the fits within the noise disagree most (RMS relative spread"
+            if committee
+            else " (RMS relative 95 % band"
+        )
         lines = [
-            f"where to measure next (RMS relative 95 % band over the range now {rms[0]:.3g}; "
+            f"where to measure next{what} over the range now {rms[0]:.3g}; "
             f"the largest {np.max(self.band):.3g})"
         ]
         pts = self.points.reshape(len(self.points), -1)
+        name = "spread" if committee else "band"
         for k, p in enumerate(pts):
             where = ", ".join(f"{x:.6g}" for x in p)
-            lines.append(f"  {k + 1}. p = {where}: RMS band -> {rms[k + 1]:.3g}")
+            lines.append(f"  {k + 1}. p = {where}: RMS {name} -> {rms[k + 1]:.3g}")
         return "\n".join(lines)
 
 
@@ -287,6 +314,9 @@ def suggest_points(
         raise ValueError(
             f"k: {k} point(s) asked for, but only {len(cands)} candidate(s) are not measured yet"
         )
+    between = getattr(result, "between", None)
+    if between is not None and between.members:
+        return _by_committee(result, between, cands, grid, pairs, k)
     index = _lti_index(model)
     f = data.freqs_hz
     parts = GridParts(model, f, grid)
@@ -311,6 +341,55 @@ def suggest_points(
         band_after=relative_band(after, parts, index),
         variance=variance,
         p_range=pairs[0] if n_params == 1 else pairs,
+    )
+
+
+def _relative_spread(between: Any, freqs_hz: NDArray, p: NDArray) -> NDArray[np.float64]:
+    """``||spread(p)|| / ||G_m(p)||`` at every row of ``p`` (Frobenius norms)."""
+    q = p[:, 0] if p.shape[1] == 1 else p
+    s = between.spread(freqs_hz, q)
+    G = between.model.frf(freqs_hz, q)
+    num = np.linalg.norm(s.reshape(len(p), -1), axis=1)
+    den = np.linalg.norm(G.reshape(len(p), -1), axis=1)
+    return num / np.maximum(den, np.finfo(float).tiny)
+
+
+def _by_committee(
+    result: IdentifyResult, between: Any, cands: NDArray, grid: NDArray, pairs: list, k: int
+) -> Suggestion:
+    """The committee's criterion (module notes)."""
+    data = result.data
+    f = data.freqs_hz
+    measured = _scaled(data.p.reshape(data.n_points, -1), pairs)
+    h = 1.0 / (data.n_points + k)
+    at, on_grid = _scaled(cands, pairs), _scaled(grid, pairs)
+    score, band = _relative_spread(between, f, cands), _relative_spread(between, f, grid)
+    gap = np.min(np.linalg.norm(at[:, None, :] - measured[None, :, :], axis=2), axis=1)
+    after = band.copy()
+    picks: list[int] = []
+    variance = [float(np.mean(band**2))]
+    for _ in range(k):
+        damped = np.where(
+            np.isin(np.arange(len(cands)), picks), -np.inf, score * np.minimum(1.0, gap / h)
+        )
+        best = float(damped.max())
+        tied = np.flatnonzero(damped >= best - TIE * abs(best))
+        c = int(tied[np.argmax(gap[tied])])
+        picks.append(c)
+        gap = np.minimum(gap, np.linalg.norm(at - at[c], axis=1))
+        after = after * np.minimum(1.0, np.linalg.norm(on_grid - at[c], axis=1) / h)
+        variance.append(float(np.mean(after**2)))
+    points = cands[picks]
+    one = len(pairs) == 1
+    return Suggestion(
+        points=points[:, 0] if one else points,
+        measured=data.p.copy(),
+        grid=grid[:, 0] if one else grid,
+        band=band,
+        band_after=after,
+        variance=np.array(variance),
+        p_range=pairs[0] if one else pairs,
+        criterion="committee",
     )
 
 

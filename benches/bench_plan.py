@@ -1,0 +1,126 @@
+"""Measure next where lpvid says, or at the midpoint of the largest gap, or on an even grid?
+
+The loop an engineer runs at a test bench, on a system with a known truth:
+start from ``Nb + 1`` points (the ends of the range and one drawn
+uniformly in between), identify (no validation data, D fixed), and while
+the model's worst relative FRF error at 20 unseen values is above the goal
+(0.01), add one measured point and identify again, up to ``--most``
+points added. Three ways to choose the next point:
+
+- ``next``: :func:`lpvid.next_points` on the result;
+- ``gap``: the midpoint of the largest gap between the points measured;
+- ``grid``: no loop: an even grid of ``Nb + 1 + k`` points, ``k = 0, 1, ...``
+  (every point measured anew), until the goal is met.
+
+Each new measurement is the truth's FRF at that value with 1 % complex
+noise (``lpvid.testing.noisy_data``, the draw's own random numbers). The
+summary gives, per way, the mean and median number of points added to
+meet the goal (a draw that does not meet it within ``--most`` counts as
+``most + 1``), how many draws met it, and the mean error after each
+number of added points.
+
+Run: python benches/bench_plan.py [--cases mor onegroup] [--draws 20] [--most 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import warnings
+
+import numpy as np
+from bench_few import CASES, FIXED, unseen
+
+import lpvid
+from lpvid.testing import noisy_data, worst_relative_error
+
+GOAL = 0.01
+
+
+def _identify(data: lpvid.FrfData, case, true) -> lpvid.IdentifyResult:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return lpvid.identify(data, case.n, true.basis, fixed=FIXED)
+
+
+def _merge(a: lpvid.FrfData, b: lpvid.FrfData) -> lpvid.FrfData:
+    return lpvid.FrfData(
+        np.concatenate([a.p, b.p]),
+        a.freqs_hz,
+        np.concatenate([a.G, b.G]),
+        np.concatenate([a.sigma, b.sigma]),
+        Ts=a.Ts,
+    )
+
+
+def loop(name: str, draw: int, way: str, most: int) -> list[float]:
+    """The worst error after 0, 1, ... added points (stops once the goal is met)."""
+    case = CASES[name]
+    true = case.truth(draw)
+    lo, hi = true.p_range
+    at = unseen(case, np.array([lo]), np.array([hi]))
+    nb1 = len(true.basis) + 1
+    rng = np.random.default_rng(7000 + draw)
+    first = np.sort(np.concatenate([[lo, hi], rng.uniform(lo, hi, nb1 - 2)]))
+    errors = []
+    if way == "grid":
+        for k in range(most + 1):
+            grid_rng = np.random.default_rng([7000 + draw, k])
+            data = noisy_data(true, np.linspace(lo, hi, nb1 + k), case.freqs_hz, grid_rng, 0.01)
+            errors.append(
+                worst_relative_error(_identify(data, case, true).model, true, case.freqs_hz, at)
+            )
+            if errors[-1] <= GOAL:
+                break
+        return errors
+    data = noisy_data(true, first, case.freqs_hz, rng, 0.01)
+    for k in range(most + 1):
+        res = _identify(data, case, true)
+        errors.append(worst_relative_error(res.model, true, case.freqs_hz, at))
+        if errors[-1] <= GOAL or k == most:
+            break
+        if way == "next":
+            new = float(lpvid.next_points(res)[0])
+        else:
+            p = np.sort(data.p)
+            gaps = np.diff(p)
+            j = int(np.argmax(gaps))
+            new = float(p[j] + gaps[j] / 2)
+        data = _merge(data, noisy_data(true, [new], case.freqs_hz, rng, 0.01))
+    return errors
+
+
+def main() -> None:
+    """Run the loops and print their rows and summaries."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", choices=["mor", "onegroup"], default=["mor"])
+    parser.add_argument("--draws", type=int, default=20)
+    parser.add_argument("--most", type=int, default=5)
+    parser.add_argument("--ways", nargs="+", default=["next", "gap", "grid"])
+    args = parser.parse_args()
+    lines = []
+    for name in args.cases:
+        for way in args.ways:
+            added, curves = [], []
+            for draw in range(args.draws):
+                errs = loop(name, draw, way, args.most)
+                met = errs[-1] <= GOAL
+                added.append(len(errs) - 1 if met else args.most + 1)
+                curves.append(errs + [errs[-1]] * (args.most + 1 - len(errs)))
+                trail = " ".join(f"{e:.3g}" for e in errs)
+                print(f"  {name} {way} draw {draw}: added {added[-1]}; errors {trail}", flush=True)
+            mean_curve = " ".join(
+                f"{np.mean([c[k] for c in curves]):.3g}" for k in range(args.most + 1)
+            )
+            met = sum(a <= args.most for a in added)
+            lines.append(
+                f"## {name} {way}: points added mean {np.mean(added):.2f}, median "
+                f"{statistics.median(added):g}, met {met}/{len(added)}; mean error after 0.. "
+                f"{args.most} added: {mean_curve}"
+            )
+            print(lines[-1], flush=True)
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
