@@ -44,7 +44,7 @@ def openblas_kernels() -> set[str]:
 
 
 def avx512_targets() -> list[str]:
-    """numpy's dispatch targets that need AVX-512 (numpy 2: X86_V4, AVX512_ICL, ...)."""
+    """The dispatch targets of numpy that need AVX-512 (numpy 2: X86_V4, AVX512_ICL, ...)."""
     return [t for t in umath.__cpu_dispatch__ if t == "X86_V4" or t.startswith("AVX512")]
 
 
