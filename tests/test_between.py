@@ -67,23 +67,38 @@ def test_a_one_group_truth_is_kept_without_validation_data(seed):
 def test_more_data_never_hurts_much():
     # One more measured point, no validation data: the worst error at unseen
     # scheduling values stays within 1.5 times the error before on average
-    # over the seeds and the points added, and within 3 times (or the noise
-    # level) in the worst case. (Landed main before the judged refit: up to
-    # 140 times worse, 0.0017 -> 0.24; benches/bench_between.py --cases more.)
-    ratios, ok = [], []
+    # over the seeds and the points added, and within 3 times in the worst
+    # case. (Landed main before the judged refit: up to 140 times worse,
+    # 0.0017 -> 0.24; benches/bench_between.py --cases more.) An error below
+    # the noise counts as the noise: the measurements' own error at the
+    # points identify was given, in the same measure (0.012-0.018 here for
+    # 1 % noise). Below it the model returned is one of several that fit
+    # within the noise, and which one follows the last bits: seed 0's fifth
+    # point took the error from 0.0129 to 0.0284 with numpy's OpenBLAS on
+    # its Haswell kernel and from 0.0098 to 0.0375 on its Sandybridge kernel
+    # (issue 59), 2.2 and 3.8 times, 1.6 and 2.1 times the noise before.
+    ratios = []
     for seed, extra in itertools.product(range(2), (0.75, 0.1)):
         true = one_group_lpv(seed)
         rng = np.random.default_rng(300 + seed)
         full = noisy_data(true, [0.02, 0.5, 1.0, extra, 0.25], LINES, rng, 0.01)
-        errs = []
+        errs, noise = [], []
         for k in (3, 4, 5):
-            res = _identify(full.subset(list(range(k))), true.basis)
+            data = full.subset(list(range(k)))
+            res = _identify(data, true.basis)
             errs.append(worst_relative_error(res.model, true, LINES, UNSEEN))
-        for before, after in itertools.pairwise(errs):
-            ratios.append(after / before)
-            ok.append(after <= max(3 * before, 0.01))
+            noise.append(_measured_error(data, true))
+        for k in (1, 2):
+            ratios.append(errs[k] / max(errs[k - 1], noise[k - 1]))
     assert np.mean(ratios) <= 1.5, ratios
-    assert all(ok), ratios
+    assert max(ratios) <= 3, ratios
+
+
+def _measured_error(data, true):
+    """worst_relative_error of the measurements themselves: the noise in that measure."""
+    G, Gt = data.G, true.frf(data.freqs_hz, data.p)
+    err = np.linalg.norm((G - Gt).reshape(len(G), -1), axis=1)
+    return float(np.max(err / np.linalg.norm(Gt.reshape(len(Gt), -1), axis=1)))
 
 
 @pytest.mark.parametrize("n_params", [2, 3])
