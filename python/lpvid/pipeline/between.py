@@ -6,12 +6,13 @@ Two things, both in :class:`Between`:
   returned model's structure the points leave open, and at least how many
   more points would determine it;
 - a spread between the points: at every line and scheduling value, the
-  larger of the 95 % band of the covariance (the noise's part, first
-  order) and the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`:
-  the largest distance from the returned model's FRF to the FRF of any
-  other fit within the noise). Where the points determine the model the
-  band is the spread; where they do not, the committee shows what the data
-  leave to the prior.
+  95 % band of the covariance on the directions the points see (the
+  noise's part, first order: :func:`lpvid.trust.silent.seen_covariance`)
+  plus the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`: the
+  largest distance from the returned model's FRF to the FRF of any other
+  fit within the noise), two parts of different origin added. Where the
+  points determine the model the band is the spread; where they do not,
+  the committee shows what the data leave to the prior.
 """
 
 from __future__ import annotations
@@ -93,17 +94,18 @@ class Between:
     def spread(self, freqs_hz: ArrayLike, p: ArrayLike, level: float = 0.95) -> NDArray:
         """The spread around ``model.frf(freqs_hz, p)``: shape ``(M, F, l, r)`` (module notes).
 
-        The larger, entry by entry, of the covariance's band of coverage
-        ``level`` and the largest distance to another fit within the noise.
+        Entry by entry, the covariance's band of coverage ``level`` plus the
+        largest distance to another fit within the noise.
         """
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
-        out = np.zeros(G.shape)
+        band = np.zeros(G.shape)
         if self.covariance is not None:
-            out = band_radius(level) * self.covariance.frf_std(f, p)
+            band = band_radius(level) * self.covariance.frf_std(f, p)
+        far = np.zeros(G.shape)
         for m in self.members:
-            out = np.maximum(out, np.abs(m.model.frf(f, p) - G))
-        return out
+            far = np.maximum(far, np.abs(m.model.frf(f, p) - G))
+        return band + far
 
     def worst(self) -> tuple[float, NDArray[np.float64]]:
         """The largest relative spread over the range, and where.

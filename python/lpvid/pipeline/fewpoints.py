@@ -19,9 +19,14 @@ the *committee*:
 does not shut out one that fits as the truth would).
 
 **The rule.** Without validation data, the model returned is the
-committee's consensus: of the routes' own choices (each path's entry by
-its knee, :func:`lpvid.pipeline.routes.path_choice`) that are members,
-the one whose frozen FRF over the range is nearest the members' (the least
+committee's consensus. The routes' own choices (each path's entry by its
+knee, :func:`lpvid.pipeline.routes.path_choice`) that are members are
+scored ``V_NLS + 2 K``, ``K`` the directions their structure has over the
+range (:func:`simplest_choices`, :data:`COMPLEXITY`: a direction the
+points cannot hold is paid for like a fitted parameter, at twice Akaike's
+price); those within the noise (``2 sqrt(M)``) of the least score compete,
+and of them the one whose frozen FRF over the range is nearest the
+members' is returned (the least
 median, over the other members, of the largest relative distance over a
 grid of the range, :func:`distances`), among the members whose frozen
 models are stable between the points when there are any (every member
@@ -61,9 +66,11 @@ from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.misfit import misfit
 from lpvid.pipeline.routes import Route
+from lpvid.stable.scan import stability
 from lpvid.trust.silent import SilentCount, range_grid, seen_covariance, silent_directions
 
 __all__ = [
+    "COMPLEXITY",
     "CONSENSUS_TIE",
     "choose_route",
     "committee",
@@ -78,6 +85,11 @@ __all__ = [
 #: Median distances within this share of the least count as equal (the
 #: first member in the routes' order wins).
 CONSENSUS_TIE = 0.01
+
+#: What a direction of a route's structure over the range costs in the score
+#: that decides which routes' choices compete (twice Akaike's penalty in
+#: V_NLS's units, where a fitted real parameter lowers V_NLS by 1/2).
+COMPLEXITY = 2.0
 
 
 def committee(routes: Sequence[Route], data: FrfData) -> list[Member]:
@@ -117,10 +129,11 @@ def consensus(
 ) -> tuple[Member, str]:
     """The committee's consensus (module notes), and why.
 
-    ``choices`` are the ``(route, index)`` of every route's own choice on its
-    path: the members among them compete (each path's choice of simplicity
-    stands), scored against every member; all members compete when none of
-    them is one.
+    ``choices`` are the ``(route, index)`` of the routes' choices that
+    compete (each path's choice of simplicity stands), scored against every
+    member; all members compete when none of them is one. Of the
+    competitors, those whose frozen models are stable over the whole range
+    (:func:`lpvid.stability`'s exact test) come first.
     """
     if len(members) == 1:
         return members[0], "the only fit within the noise"
@@ -131,6 +144,8 @@ def consensus(
     compete = [k for k, m in enumerate(pool) if (m.route, m.index) in chosen] or list(
         range(len(pool))
     )
+    steady = [k for k in compete if stability(pool[k].model, quadratic=False).stable]
+    compete = steady or compete
     D = distances([m.model for m in pool], data)
     med = np.array([np.median(np.delete(D[k], k)) for k in compete])
     least = float(med.min())
@@ -277,8 +292,12 @@ def choose_route(
     validation: FrfData | None,
     tolerance: float,
     local: LocalModels,
+    threshold: float = 1e-6,
 ) -> tuple[int, int, str, list[Member]]:
     """The route and entry returned, why, and the other members of the committee.
+
+    ``threshold``: the relative group magnitude at or below which a group
+    counts as dropped (the structures' counts).
 
     Members that are misfits (:func:`lpvid.pipeline.misfit.misfit`) leave the
     committee; when none is left, the routes' own choices compete on V_NLS.
@@ -294,11 +313,41 @@ def choose_route(
         k = routes[i].chosen
         reason = f"{routes[i].reason}; no route fits within the noise: the lowest V_NLS of them"
     else:
-        choices = [(i, r.chosen) for i, r in enumerate(routes)]
+        choices, why = simplest_choices(routes, members, data, threshold)
         pick, reason = consensus(members, data, choices)
+        reason = f"{reason}; {why}"
         i, k = pick.route, pick.index
     others = [m for m in members if (m.route, m.index) != (i, k)]
     return i, k, reason, others
+
+
+def simplest_choices(
+    routes: Sequence[Route], members: Sequence[Member], data: FrfData, threshold: float
+) -> tuple[list[tuple[int, int]], str]:
+    """The routes' choices that compete in the consensus (module notes), and why.
+
+    Each route's choice that is a member is scored ``V_NLS + COMPLEXITY K``,
+    ``K`` the directions its structure has over the range
+    (:attr:`lpvid.trust.silent.SilentCount.over_range`: those the points see
+    and those they leave open); those within the noise (``2 sqrt(M)``) of
+    the least score compete.
+    """
+    inside = {(m.route, m.index) for m in members}
+    scored = []
+    for i, r in enumerate(routes):
+        if (i, r.chosen) not in inside:
+            continue
+        count, _ = count_silent(r.entry.model, data, r.fixed, threshold)
+        k = 0 if count is None else count.over_range
+        scored.append(((i, r.chosen), r.entry.vnls + COMPLEXITY * k, k))
+    if not scored:
+        return [], "no route's own choice fits within the noise"
+    least = min(s for _, s, _ in scored)
+    keep = [c for c, s, _ in scored if s <= least + noise_slack(data.n_residuals)]
+    return keep, (
+        f"{len(keep)} of the routes' {len(scored)} choices within the noise of the least "
+        f"V_NLS + {COMPLEXITY:g} x directions over the range"
+    )
 
 
 def open_between(

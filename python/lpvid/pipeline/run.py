@@ -360,7 +360,9 @@ def _run(
         lambda c: follow(c.name, c.fit, gs, data, fixed=c.structure, **along),
         lambda message: _say(progress, message),
     )
-    route_index, chosen, reason, members = choose_route(routes, data, validation, tol, local)
+    route_index, chosen, reason, members = choose_route(
+        routes, data, validation, tol, local, l21.threshold
+    )
     route = routes[route_index]
     route.say_warnings()
     timings["few_points_s"] = time.perf_counter() - t
