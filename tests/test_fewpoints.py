@@ -141,14 +141,39 @@ def fewpoints_relative(between, grid):
     )
 
 
-def test_enough_points_leave_nothing_open_and_follow_one_route():
+def test_enough_points_leave_nothing_open():
     data = _data(np.linspace(0.02, 1, 9), seed=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
         res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
-    assert res.between.determined and not res.between.members
-    assert not res.start.startswith("blocks")
+    assert res.between.determined
     assert worst_relative_error(res.model, TRUE, FREQS, UNSEEN) < 0.02
+
+
+def _route_of(model, data):
+    """A stand-in route whose choice is ``model`` (its unregularised entry)."""
+    from lpvid.pipeline.result import PathEntry
+    from lpvid.pipeline.routes import Route
+
+    v = lpvid.vnls(model, data)
+    entry = PathEntry(0.0, model, v, data.n_residuals, None, None, 1, {}, 0.0)
+    return Route("stand-in", None, [], [entry], 0, "the stand-in", FIXED)
+
+
+@pytest.mark.parametrize(("points", "opened"), [(9, False), (3, True)])
+def test_routes_open_only_when_the_points_leave_the_choice_open(points, opened):
+    """The truth's own structure: determined by nine points, not by three."""
+    data = _data(np.linspace(0.02, 1, points), seed=3)
+    problem = lpvid.Problem(data, 10, TRUE.basis, fixed=FIXED)
+    local = lpvid.identify_lti(data, 10, strictly_proper=True)
+    followed = []
+    routes, more, count = fewpoints.open_routes(
+        problem, _route_of(TRUE, data), local, lambda c: followed.append(c.name), lambda m: None
+    )
+    assert count.determined is not opened
+    assert (len(more) > 0) is opened and all(c.name.startswith("blocks:") for c in more)
+    if not opened:
+        assert len(routes) == 1 and not followed
 
 
 def test_the_blocks_route_fits_three_points_and_is_right_between_them():

@@ -67,7 +67,7 @@ from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.misfit import misfit
 from lpvid.pipeline.routes import Route
 from lpvid.stable.scan import stability
-from lpvid.trust.silent import SilentCount, range_grid, seen_covariance, silent_directions
+from lpvid.trust.silent import SilentCount, openness, range_grid, silent_directions
 
 __all__ = [
     "COMPLEXITY",
@@ -219,12 +219,13 @@ def open_routes(
     """
     data, validation = problem.data, problem.validation
     threshold = problem.settings.path.l21.threshold
-    count, _ = count_silent(main.entry.model, data, main.fixed, threshold, problem.time_data)
     e = main.entry
     wrong = misfit(e.vnls, e.noise_floor, local, e.validation_vnls, e.validation_floor)
-    determined = count is None or count.determined
     # With validation data they judge what lies between the points: only a misfit opens routes.
-    if problem.time_data is not None or (not wrong and (determined or validation is not None)):
+    if problem.time_data is not None or (not wrong and validation is not None):
+        return [main], [], None
+    count = None if wrong else count_silent(e.model, data, main.fixed, threshold)[0]
+    if not wrong and (count is None or count.determined):
         return [main], [], count
     starts = problem.settings.starts
     if wrong:
@@ -356,27 +357,23 @@ def open_between(
     data: FrfData,
     threshold: float,
     time_cost: Any,
-    *,
-    counted: bool,
 ) -> Between:
     """The :class:`~lpvid.pipeline.between.Between` of the model returned.
 
     Its band is the covariance on the directions the points see
     (:func:`lpvid.trust.silent.seen_covariance`); the silent ones are the
-    committee's (``members``). Not counted (``counted`` False, the time
-    records, or a structure too large): the covariance of ``done`` as it is.
+    committee's (``members``). Not counted (time records, or a structure
+    too large): the covariance of ``done`` as it is.
     """
-    count, note = (
-        (None, "")
-        if not counted
-        else count_silent(done.model, data, done.fixed, threshold, time_cost)
-    )
-    band = done.covariance
-    if count is not None and band is not None:
-        theta, _, _ = seen_covariance(done.model, data, done.fixed, threshold=threshold)
-        band = replace(band, theta=theta, n_unidentified=band.n_unidentified + count.silent)
-    elif not counted:
-        note = "the chosen start's structure could not be counted"
+    band, count, note = done.covariance, None, ""
+    if time_cost is not None:
+        note = "the time records see the model between the points"
+    elif int((~done.fixed).sum()) > MAX_COUNTED:
+        note = f"more than {MAX_COUNTED} free parameters (the count is dense)"
+    else:
+        count, theta = openness(done.model, data, done.fixed, threshold=threshold)
+        if band is not None:
+            band = replace(band, theta=theta, n_unidentified=band.n_unidentified + count.silent)
     return Between(
         model=done.model, count=count, members=members, covariance=band, data=data, note=note
     )

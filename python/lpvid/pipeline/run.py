@@ -353,7 +353,7 @@ def _run(
     main = follow(start.name, nls, gs, data, fixed=fixed, **along)
     timings["path_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    routes, more, count = open_routes(
+    routes, more, _ = open_routes(
         problem,
         main,
         local,
@@ -405,7 +405,7 @@ def _run(
             ConvergenceWarning,
             stacklevel=3,
         )
-    between = open_between(done, members, data, l21.threshold, time_cost, counted=count is not None)
+    between = open_between(done, members, data, l21.threshold, time_cost)
     timings["finish_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
     return IdentifyResult(

@@ -76,11 +76,24 @@ def key_numbers(result: IdentifyResult) -> dict[str, Any]:
         "vnls_before_refit": result.entry.vnls,
         "validation_vnls_before_refit": result.entry.validation_vnls,
         "covariance_rank": None if result.covariance is None else result.covariance.rank,
+        **_between_numbers(result),
         "stable": None if result.stability is None else result.stability.stable,
         "stability_margin": None if result.stability is None else result.stability.margin,
         "worst_p": None
         if result.stability is None
         else np.ravel(result.stability.worst_p).tolist(),
+    }
+
+
+def _between_numbers(result: IdentifyResult) -> dict[str, Any]:
+    """What the points leave open, as key numbers (None where not counted)."""
+    b = result.between
+    count = None if b is None else b.count
+    return {
+        "silent_directions": None if count is None else count.silent,
+        "directions_over_range": None if count is None else count.over_range,
+        "points_needed": None if count is None else count.points_needed,
+        "committee_members": 0 if b is None else len(b.members),
     }
 
 
@@ -204,6 +217,8 @@ def _trust(result: IdentifyResult) -> list[str]:
                 else ""
             )
         )
+    if result.between is not None:
+        lines += [f"- {line.strip()}" for line in result.between.summary().splitlines()]
     rng = result.stability.p_range if result.stability is not None else None
     rep = stability(result.model, rng)
     lines += [f"- {line}" for line in rep.summary().splitlines()]

@@ -42,7 +42,14 @@ from lpvid.model.lpv import LpvModel
 from lpvid.model.similarity import free_similarity_directions
 from lpvid.trust.uncertainty import _lti_index, coefficient_weights, frozen_grams
 
-__all__ = ["SilentCount", "least_seen", "range_grid", "seen_covariance", "silent_directions"]
+__all__ = [
+    "SilentCount",
+    "least_seen",
+    "openness",
+    "range_grid",
+    "seen_covariance",
+    "silent_directions",
+]
 
 #: Scheduling values per axis of the grid over the range, by the number of
 #: scheduling parameters (3 per axis beyond three).
@@ -219,7 +226,10 @@ def silent_directions(
     -------
     SilentCount
     """
-    pair = _pair(model, data, fixed, threshold)
+    return _count(_pair(model, data, fixed, threshold))
+
+
+def _count(pair: _Pair) -> SilentCount:
     W = pair.whiten
     seen = np.linalg.eigvalsh(_sym(W.T @ pair.at_points @ W))
     per = [int(np.sum(np.linalg.eigvalsh(_sym(W.T @ K @ W)) >= SEEN)) for K in pair.each]
@@ -271,12 +281,24 @@ def seen_covariance(
         The directions left out.
     """
     pair = _pair(model, data, fixed, threshold)
+    cov, silent = _seen_cov(pair, model.theta.size)
+    return cov, pair.free, silent
+
+
+def _seen_cov(pair: _Pair, P: int) -> tuple[NDArray[np.float64], int]:
     W = pair.whiten
     share, vecs = np.linalg.eigh(_sym(W.T @ pair.at_points @ W))
     seen = share >= SEEN
     X = pair.to_free @ (W @ vecs[:, seen])  # seen directions in the free parameters
-    inner = X / (2.0 * data.n_points * share[seen])
-    P = model.theta.size
+    inner = X / (2.0 * len(pair.each) * share[seen])
     cov = np.zeros((P, P))
     cov[np.ix_(pair.free, pair.free)] = _sym(inner @ X.T)
-    return cov, pair.free, int(np.sum(~seen))
+    return cov, int(np.sum(~seen))
+
+
+def openness(
+    model: LpvModel, data: FrfData, fixed: Any = None, *, threshold: float = 1e-6
+) -> tuple[SilentCount, NDArray[np.float64]]:
+    """:func:`silent_directions` and :func:`seen_covariance`'s matrix, from one computation."""
+    pair = _pair(model, data, fixed, threshold)
+    return _count(pair), _seen_cov(pair, model.theta.size)[0]
