@@ -10,7 +10,8 @@ Two things, both in :class:`Between`:
   noise's part, first order: :func:`lpvid.trust.silent.seen_covariance`)
   plus the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`: the
   largest distance from the returned model's FRF to the FRF of any other
-  fit within the noise), two parts of different origin added. Where the
+  fit within the noise of the routes whose choices competed), two parts of
+  different origin added. Where the
   points determine the model the band is the spread; where they do not,
   the committee shows what the data leave to the prior.
 """

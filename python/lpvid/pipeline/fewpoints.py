@@ -297,6 +297,10 @@ def choose_route(
 ) -> tuple[int, int, str, list[Member]]:
     """The route and entry returned, why, and the other members of the committee.
 
+    The members returned are those of the routes whose choices competed
+    (:func:`simplest_choices`): the spread between the points and the plan
+    of the next measurement follow the routes the data left in the running.
+
     ``threshold``: the relative group magnitude at or below which a group
     counts as dropped (the structures' counts).
 
@@ -318,6 +322,9 @@ def choose_route(
         pick, reason = consensus(members, data, choices)
         reason = f"{reason}; {why}"
         i, k = pick.route, pick.index
+        # the spread and the plan follow the routes that competed
+        plausible = {r for r, _ in choices} or {i}
+        members = [m for m in members if m.route in plausible]
     others = [m for m in members if (m.route, m.index) != (i, k)]
     return i, k, reason, others
 
@@ -329,7 +336,7 @@ def simplest_choices(
 
     Each route's choice that is a member is scored ``V_NLS + COMPLEXITY K``,
     ``K`` the directions its structure has over the range
-    (:attr:`lpvid.trust.silent.SilentCount.over_range`: those the points see
+    (``SilentCount.over_range`` of :mod:`lpvid.trust.silent`: those the points see
     and those they leave open); those within the noise (``2 sqrt(M)``) of
     the least score compete.
     """
