@@ -45,16 +45,16 @@ open (:mod:`lpvid.trust.silent`) count as known here. When the points
 leave the model's structure open, :func:`lpvid.identify` keeps the other
 fits within the noise (:attr:`lpvid.IdentifyResult.between`), and where
 they disagree is where the data are silent. Then the criterion is the
-*committee's*: the relative spread ``||s(p)|| / ||G_m(p)||`` of
-:meth:`lpvid.pipeline.between.Between.spread` (the larger of the band and
-the committee's disagreement) at every candidate, damped near the points
-measured or already chosen by ``min(1, d / h)``, ``d`` the distance to the
-nearest of them and ``h`` the spacing the points will have (the range
-over ``N + k``, every parameter scaled to its range): the largest is
-taken, ``k > 1`` greedily. ``band`` is that relative spread over the
-grid, ``band_after`` the same damped by every suggested point (a
-measurement settles the spread around it), ``variance`` the mean square
-of each.
+*committee's*: ``s(p) = ||spread(p)|| / ||G_m(p)||``, the relative spread
+of :meth:`lpvid.pipeline.between.Between.spread` over the grid, and a
+measurement at ``c`` is taken to settle it around ``c``: ``s(p)`` becomes
+``s(p) min(1, |p - c| / h)``, ``h`` the spacing the points will have (the
+range over ``N + k``, every parameter scaled to its range). The candidate
+that lowers the grid mean of ``s^2`` most is suggested (a narrow spike of
+one member counts for little, a wide disagreement for much), ``k > 1``
+greedily, each settling its neighbourhood before the next; ties as
+below. ``band`` is ``s`` over the grid, ``band_after`` what the settling
+leaves, ``variance`` the mean of ``s^2`` before and after each point.
 """
 
 from __future__ import annotations
@@ -363,21 +363,22 @@ def _by_committee(
     measured = _scaled(data.p.reshape(data.n_points, -1), pairs)
     h = 1.0 / (data.n_points + k)
     at, on_grid = _scaled(cands, pairs), _scaled(grid, pairs)
-    score, band = _relative_spread(between, f, cands), _relative_spread(between, f, grid)
+    band = _relative_spread(between, f, grid)
     gap = np.min(np.linalg.norm(at[:, None, :] - measured[None, :, :], axis=2), axis=1)
+    # a measurement at a candidate settles the spread around it, to zero at the candidate
+    settle = np.minimum(1.0, np.linalg.norm(at[:, None, :] - on_grid[None, :, :], axis=2) / h)
     after = band.copy()
     picks: list[int] = []
     variance = [float(np.mean(band**2))]
     for _ in range(k):
-        damped = np.where(
-            np.isin(np.arange(len(cands)), picks), -np.inf, score * np.minimum(1.0, gap / h)
-        )
-        best = float(damped.max())
-        tied = np.flatnonzero(damped >= best - TIE * abs(best))
+        gain = np.sum((1.0 - settle**2) * after[None, :] ** 2, axis=1)
+        gain[picks] = -np.inf
+        best = float(gain.max())
+        tied = np.flatnonzero(gain >= best - TIE * abs(best))
         c = int(tied[np.argmax(gap[tied])])
         picks.append(c)
         gap = np.minimum(gap, np.linalg.norm(at - at[c], axis=1))
-        after = after * np.minimum(1.0, np.linalg.norm(on_grid - at[c], axis=1) / h)
+        after = after * settle[c]
         variance.append(float(np.mean(after**2)))
     points = cands[picks]
     one = len(pairs) == 1
