@@ -74,6 +74,7 @@ __all__ = [
     "CONSENSUS_TIE",
     "choose_route",
     "committee",
+    "consistent",
     "consensus",
     "count_silent",
     "distances",
@@ -317,6 +318,14 @@ def choose_route(
         i = min(range(len(routes)), key=lambda j: (routes[j].entry.vnls, j))
         k = routes[i].chosen
         reason = f"{routes[i].reason}; no route fits within the noise: the lowest V_NLS of them"
+    elif not consistent(routes, members, data):
+        i, k = 0, main.chosen
+        reason = (
+            f"{main.reason}; the blocks route's starts land on models further apart than "
+            "the chosen start's model is from the nearest of them: that form does not hold "
+            "for these data, and the chosen start's model stands"
+        )
+        members = [m for m in members if m.route == 0]
     else:
         choices, why = simplest_choices(routes, members, data, threshold)
         pick, reason = consensus(members, data, choices)
@@ -327,6 +336,26 @@ def choose_route(
         members = [m for m in members if m.route in plausible]
     others = [m for m in members if (m.route, m.index) != (i, k)]
     return i, k, reason, others
+
+
+def consistent(routes: Sequence[Route], members: Sequence[Member], data: FrfData) -> bool:
+    """Whether the other routes agree with themselves more than with the chosen start's route.
+
+    The largest distance (:func:`distances`) between the choices of the
+    routes after the first that are members must be below the distance from
+    the first route's choice to the nearest of them. A form the data
+    support gives the same model from every start; one that lands on models
+    further apart than the first route's is fighting the data. True when
+    the first route's choice is no member, or fewer than two others are.
+    """
+    inside = {(m.route, m.index) for m in members}
+    if (0, routes[0].chosen) not in inside:
+        return True
+    others = [r.entry.model for i, r in enumerate(routes) if i and (i, r.chosen) in inside]
+    if len(others) < 2:
+        return True
+    D = distances([routes[0].entry.model, *others], data)
+    return float(D[1:, 1:].max()) < float(D[0, 1:].min())
 
 
 def simplest_choices(
@@ -351,7 +380,8 @@ def simplest_choices(
     if not scored:
         return [], "no route's own choice fits within the noise"
     least = min(s for _, s, _ in scored)
-    keep = [c for c, s, _ in scored if s <= least + noise_slack(data.n_residuals)]
+    slack = noise_slack(data.n_residuals)
+    keep = [c for c, s, _ in scored if s <= least + slack]
     return keep, (
         f"{len(keep)} of the routes' {len(scored)} choices within the noise of the least "
         f"V_NLS + {COMPLEXITY:g} x directions over the range"
