@@ -217,3 +217,26 @@ def test_a_basis_that_cannot_follow_the_points_is_a_misfit_said_and_warned():
     assert "misfit" in res.reason
     assert res.final.vnls > misfit.MISFIT * data.n_residuals
     assert any(c.name.startswith("global:all@") for c in res.candidates)  # tried harder
+
+
+def test_the_blocks_route_must_agree_with_itself_more_than_with_the_chosen_start():
+    data = _data([0.02, 0.5, 1.0])
+    main = _route_of(TRUE, data)
+
+    def others(*scales):
+        return [
+            dataclasses.replace(_route_of(_shifted(TRUE, s), data), name=f"blocks:{k}")
+            for k, s in enumerate(scales)
+        ]
+
+    def members(routes):
+        return [_member(r.entry.model, 0, route=i) for i, r in enumerate(routes)]
+
+    near = [main, *others(1.2, 1.201)]  # two starts that agree, away from the chosen one
+    assert fewpoints.consistent(near, members(near), data)
+    apart = [main, *others(1.01, 0.7)]  # starts further apart than the chosen one is from them
+    assert not fewpoints.consistent(apart, members(apart), data)
+    alone = [main, *others(0.7)]  # one start: nothing to check
+    assert fewpoints.consistent(alone, members(alone), data)
+    # the chosen start's choice outside the committee: nothing to keep
+    assert fewpoints.consistent(apart, members(apart)[1:], data)

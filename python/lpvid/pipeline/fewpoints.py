@@ -19,7 +19,10 @@ the *committee*:
 does not shut out one that fits as the truth would).
 
 **The rule.** Without validation data, the model returned is the
-committee's consensus. The routes' own choices (each path's entry by its
+committee's consensus, once the blocks route agrees with itself
+(:func:`consistent`: its starts' choices closer to each other than the
+chosen start's choice is to the nearest of them; else that choice stands).
+The routes' own choices (each path's entry by its
 knee, :func:`lpvid.pipeline.routes.path_choice`) that are members are
 scored ``V_NLS + 2 K``, ``K`` the directions their structure has over the
 range (:func:`simplest_choices`, :data:`COMPLEXITY`: a direction the
