@@ -136,7 +136,6 @@ def run(name: str, n_points: int, draws: int, dump: list | None = None) -> list[
         count = getattr(between, "count", None)
         silent = float("nan") if count is None else count.silent
         if dump is not None and between is not None:
-            cov = between.covariance
             dump.append(
                 {
                     "case": name,
@@ -144,7 +143,9 @@ def run(name: str, n_points: int, draws: int, dump: list | None = None) -> list[
                     "draw": draw,
                     "G": res.model.frf(case.freqs_hz, at),
                     "true": true.frf(case.freqs_hz, at),
-                    "band": None if cov is None else cov.frf_std(case.freqs_hz, at),
+                    "band": None
+                    if between.band is None
+                    else between.band.frf_std(case.freqs_hz, at),
                     "members": [m.model.frf(case.freqs_hz, at) for m in between.members],
                     "names": [m.name for m in between.members],
                     "vnls": [m.vnls for m in between.members],

@@ -18,7 +18,8 @@ Two things, both in :class:`Between`:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from lpvid._checks import real_array
 from lpvid.data.frf import FrfData
 from lpvid.model.lpv import LpvModel
-from lpvid.trust.silent import SilentCount, range_grid
+from lpvid.trust.silent import SilentCount, openness, range_grid
 from lpvid.trust.uncertainty import Covariance, band_radius
 
 __all__ = ["Between", "Member"]
@@ -58,34 +59,68 @@ class Member:
     stable: bool
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class Between:
     """What the measured points leave open between them (module notes).
+
+    The count and the band on the seen directions are computed when first
+    asked for (:attr:`count`, :attr:`band`, :meth:`spread`, :meth:`summary`),
+    not by :func:`lpvid.identify` (dense algebra of the size of the model's
+    free parameters, over a grid of the range).
 
     Attributes
     ----------
     model : LpvModel
         The model :func:`lpvid.identify` returned.
-    count : SilentCount or None
-        Directions of its structure the points leave open; None when not
-        counted (:attr:`note` says why).
     members : list of Member
         The other fits within the noise that the pipeline made (empty when
         it followed one route only).
     covariance : Covariance or None
-        The returned model's covariance.
-    data : FrfData
+        The returned model's covariance (every identifiable direction).
+    data : FrfData or None
         The identification data.
+    held : ndarray of bool or None
+        The model's held parameters (fixed, and the dropped groups'); None:
+        not counted.
+    threshold : float
+        Relative group magnitude at or below which a group counts as dropped.
     note : str
-        Why the count is missing, when it is.
+        Why the count cannot be made, when it cannot.
     """
 
     model: LpvModel
-    count: SilentCount | None
     members: list[Member] = field(default_factory=list)
     covariance: Covariance | None = None
     data: FrfData | None = field(default=None, repr=False)
+    held: NDArray[np.bool_] | None = field(default=None, repr=False)
+    threshold: float = 1e-6
     note: str = ""
+
+    @cached_property
+    def _open(self) -> tuple[SilentCount, NDArray[np.float64]] | None:
+        if self.note or self.data is None or self.held is None:
+            return None
+        return openness(self.model, self.data, self.held, threshold=self.threshold)
+
+    @property
+    def count(self) -> SilentCount | None:
+        """Directions of the model's structure the points leave open (None: not counted)."""
+        opened = self._open
+        return None if opened is None else opened[0]
+
+    @cached_property
+    def band(self) -> Covariance | None:
+        """The covariance on the directions the points see (the spread's band).
+
+        :attr:`covariance` with its silent directions left out
+        (:func:`lpvid.trust.silent.seen_covariance`); :attr:`covariance`
+        itself when not counted.
+        """
+        opened, cov = self._open, self.covariance
+        if opened is None or cov is None:
+            return cov
+        count, theta = opened
+        return replace(cov, theta=theta, n_unidentified=cov.n_unidentified + count.silent)
 
     @property
     def determined(self) -> bool | None:
@@ -101,8 +136,8 @@ class Between:
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
         band = np.zeros(G.shape)
-        if self.covariance is not None:
-            band = band_radius(level) * self.covariance.frf_std(f, p)
+        if self.band is not None:
+            band = band_radius(level) * self.band.frf_std(f, p)
         far = np.zeros(G.shape)
         for m in self.members:
             far = np.maximum(far, np.abs(m.model.frf(f, p) - G))
@@ -141,7 +176,7 @@ class Between:
                 f"{len({m.name.split(',')[0] for m in self.members})} route(s); where they "
                 "disagree with the model returned, the data are silent"
             )
-        if self.data is not None and (self.covariance is not None or self.members):
+        if self.data is not None and (self.band is not None or self.members):
             rel, where = self.worst()
             at = ", ".join(f"{x:.4g}" for x in where)
             lines.append(

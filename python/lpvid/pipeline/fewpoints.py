@@ -50,7 +50,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -70,7 +69,7 @@ from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.misfit import misfit
 from lpvid.pipeline.routes import Route
 from lpvid.stable.scan import stability
-from lpvid.trust.silent import SilentCount, openness, range_grid, silent_directions
+from lpvid.trust.silent import SilentCount, range_grid, silent_directions
 
 __all__ = [
     "COMPLEXITY",
@@ -400,20 +399,20 @@ def open_between(
 ) -> Between:
     """The :class:`~lpvid.pipeline.between.Between` of the model returned.
 
-    Its band is the covariance on the directions the points see
-    (:func:`lpvid.trust.silent.seen_covariance`); the silent ones are the
-    committee's (``members``). Not counted (time records, or a structure
-    too large): the covariance of ``done`` as it is.
+    Counted when first asked for; not with time records, or a structure of
+    more than :data:`MAX_COUNTED` free parameters (the note says why).
     """
-    band, count, note = done.covariance, None, ""
+    note = ""
     if time_cost is not None:
         note = "the time records see the model between the points"
     elif int((~done.fixed).sum()) > MAX_COUNTED:
         note = f"more than {MAX_COUNTED} free parameters (the count is dense)"
-    else:
-        count, theta = openness(done.model, data, done.fixed, threshold=threshold)
-        if band is not None:
-            band = replace(band, theta=theta, n_unidentified=band.n_unidentified + count.silent)
     return Between(
-        model=done.model, count=count, members=members, covariance=band, data=data, note=note
+        model=done.model,
+        members=members,
+        covariance=done.covariance,
+        data=data,
+        held=done.fixed,
+        threshold=threshold,
+        note=note,
     )

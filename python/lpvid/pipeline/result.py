@@ -111,6 +111,9 @@ class IdentifyResult:
         of all the starts by Levenberg-Marquardt and the choice of one),
         ``"nls_s"`` (the
         chosen start's fits, within ``"smile_s"``), ``"path_s"``,
+        ``"few_points_s"`` (without validation data, the count of what the
+        points leave open, and the other routes when they leave the model
+        open or it is a misfit: :mod:`lpvid.pipeline.fewpoints`),
         ``"finish_s"`` (the refit, the covariance and the stability of the
         model returned), ``"total_s"``.
     refit : FitResult or None

@@ -49,8 +49,9 @@ __all__ = ["Covariance", "covariance", "band_radius", "frozen_grams"]
 
 #: Rows of the LTI Jacobian per call to the core when propagating to the FRF.
 _CHUNK_ROWS = 200_000
-#: Complex Jacobian entries per call to the core in :func:`frozen_grams`.
-_CHUNK_ENTRIES = 2_000_000
+#: Complex Jacobian entries per call to the core in :func:`frozen_grams` (8 MB:
+#: each chunk is copied about four times on its way to the Gram matrices).
+_CHUNK_ENTRIES = 500_000
 
 
 def band_radius(level: float = 0.95) -> float:
