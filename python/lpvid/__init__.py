@@ -50,6 +50,7 @@ from lpvid.model import handoff
 from lpvid.model.groups import GroupNorms
 from lpvid.model.layout import fixed_mask, free_mask
 from lpvid.model.lpv import LpvModel
+from lpvid.pipeline.between import Between
 from lpvid.pipeline.problem import Problem
 from lpvid.pipeline.result import IdentifyResult
 from lpvid.pipeline.run import identify
@@ -57,11 +58,13 @@ from lpvid.selection.grid import select
 from lpvid.selection.result import GridRow, SelectResult
 from lpvid.stable.scan import stability
 from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
+from lpvid.trust.silent import SilentCount
 from lpvid.trust.support import refit
 from lpvid.trust.uncertainty import covariance
 
 __all__ = [
     "Basis",
+    "Between",
     "Consistency",
     "ConvergenceWarning",
     "Covariance",
@@ -86,6 +89,7 @@ __all__ = [
     "Polynomial",
     "Problem",
     "SelectResult",
+    "SilentCount",
     "SingularModelError",
     "StabilityReport",
     "StartSettings",
