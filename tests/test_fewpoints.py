@@ -240,3 +240,17 @@ def test_the_blocks_route_must_agree_with_itself_more_than_with_the_chosen_start
     assert fewpoints.consistent(alone, members(alone), data)
     # the chosen start's choice outside the committee: nothing to keep
     assert fewpoints.consistent(apart, members(apart)[1:], data)
+
+
+def test_the_summary_says_when_the_spread_is_the_noise_part_only():
+    data = _data([0.02, 0.5, 1.0])
+    cov = lpvid.covariance(TRUE, data, FIXED, warn=False)
+    held = lpvid.fixed_mask(TRUE, FIXED) | lpvid.fixed_mask(
+        TRUE, {"A": [2], "B": [1, 2], "C": [1, 2]}
+    )
+    alone = Between(TRUE, [], cov, data, held)
+    assert alone.count.silent > 0 and "noise's part" in alone.summary()
+    shown = Between(TRUE, [_member(_shifted(TRUE, 1.001), 0)], cov, data, held)
+    assert "noise's part" not in shown.summary() and "1 other fit(s)" in shown.summary()
+    # the band on the seen directions leaves the silent ones out
+    assert shown.band.n_unidentified == cov.n_unidentified + shown.count.silent

@@ -176,6 +176,12 @@ class Between:
                 f"{len({m.name.split(',')[0] for m in self.members})} route(s); where they "
                 "disagree with the model returned, the data are silent"
             )
+        elif self.count is not None and not self.count.determined:
+            lines.append(
+                "  no other fit within the noise was made (validation data judged, or one "
+                "route only): the spread below is the noise's part on the directions the "
+                "points see, not what the open ones allow"
+            )
         if self.data is not None and (self.band is not None or self.members):
             rel, where = self.worst()
             at = ", ".join(f"{x:.4g}" for x in where)
