@@ -224,7 +224,7 @@ def test_damaged_or_foreign_model_files_are_refused(tmp_path, rng):
     future.write_text(json.dumps({**doc, "version": 99}))
     with pytest.raises(
         ValueError,
-        match=r"^path: future\.json has model file version 99; this lpvid reads version 1",
+        match=r"^path: future\.json has model file version 99; this lpvid reads versions 1 to 2",
     ):
         lpvid.LpvModel.load(future)
 

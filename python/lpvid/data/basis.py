@@ -2,6 +2,12 @@
 
 A basis maps scheduling values ``p`` (shape ``(N,)`` or ``(N, Np)``) to the
 ``(N, Nb)`` array of ``psi_i(p[q])``. The constant ``psi_0 = 1`` is implicit.
+
+The polynomial bases take every parameter on a scale (``scale="linear"``,
+the default, or ``"log"``): on the log scale ``log10(p)``, not ``p``, is
+mapped affinely to [-1, 1], so that a variable spanning decades is followed
+by a low degree. The model applies the scale itself: everything takes
+``p`` in the user's units.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from numpy.polynomial import legendre as npleg
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_int, real_array
-from lpvid.data.schedule import range_pairs
+from lpvid.data.schedule import check_positive, range_pairs, scale_grid, scale_list
 
 __all__ = ["Basis", "Polynomial", "Legendre", "CustomBasis", "basis_from_dict"]
 
@@ -41,11 +47,6 @@ def _exponents(degree: int, n_params: int) -> list[tuple[int, ...]]:
     return out
 
 
-def _grid(axes: list[NDArray[np.float64]]) -> NDArray[np.float64]:
-    """Every combination of the axes' values, one point a row."""
-    return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
-
-
 class Basis(ABC):
     """A set of basis functions ``psi_1..psi_Nb`` of the scheduling parameters."""
 
@@ -63,6 +64,11 @@ class Basis(ABC):
 
     def __len__(self) -> int:
         return len(self.names)
+
+    @property
+    def scales(self) -> tuple[str, ...]:
+        """The scale of every scheduling parameter: ``"linear"`` unless the basis says otherwise."""
+        return ("linear",) * self.n_params
 
     def _points(self, p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
         arr = real_array(p, name, ndim=(0, 1, 2))
@@ -122,9 +128,9 @@ class Basis(ABC):
         return np.max(np.abs(values), axis=0)
 
     def _sup_points(self, box: list[Domain]) -> NDArray[np.float64]:
-        """Where :meth:`sup_norms` looks in ``box``: a grid that holds its corners."""
+        """Where :meth:`sup_norms` looks in ``box``: a grid even on every scale, corners in."""
         per_axis = {1: 2001, 2: 101}.get(self.n_params, 11)
-        return _grid([np.linspace(lo, hi, per_axis) for lo, hi in box])
+        return scale_grid(box, per_axis, self.scales)
 
     @abstractmethod
     def to_dict(self) -> dict[str, Any]:
@@ -147,44 +153,105 @@ class _ScaledBasis(Basis):
 
     kind = ""
 
-    def __init__(self, degree: int, domain: Any, n_params: int | None, domain_required: bool):
+    def __init__(
+        self,
+        degree: int,
+        domain: Any,
+        n_params: int | None,
+        domain_required: bool,
+        scale: str | Sequence[str] = "linear",
+    ):
         self.degree = positive_int(degree, "degree", minimum=0)
         self.domain = _domains(domain, n_params, required=domain_required)
         if self.domain is not None:
             self.n_params = len(self.domain)
+        elif n_params is None and isinstance(scale, (list, tuple)):
+            self.n_params = positive_int(len(scale), "scale")  # one scale per parameter
         else:
             self.n_params = positive_int(1 if n_params is None else n_params, "n_params")
+        self._scales = scale_list(scale, self.n_params)
+        for k, (sc, (lo, hi)) in enumerate(zip(self._scales, self.domain or [], strict=False)):
+            if sc == "log" and lo <= 0:
+                which = "" if self.n_params == 1 else f" of parameter {k + 1}"
+                raise ValueError(
+                    f"domain: a log scale needs a range above zero; the range{which} "
+                    f"({lo:g}, {hi:g}) reaches {lo:g} (take it on scale='linear')"
+                )
+        self._log = np.array([sc == "log" for sc in self._scales])
+        # The domain on every parameter's scale, rows lo and hi.
+        self._ends = None if self.domain is None else self.transform(np.array(self.domain).T)
         self.exponents = _exponents(self.degree, self.n_params)
 
-    def scale(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Map ``p`` (N, Np) affinely so that the domain becomes [-1, 1]."""
-        if self.domain is None:
+    @property
+    def scales(self) -> tuple[str, ...]:
+        """The scale of every scheduling parameter, ``"linear"`` or ``"log"``."""
+        return self._scales
+
+    def _points(self, p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
+        arr = super()._points(p, name)
+        check_positive(arr, self._scales, name)
+        return arr
+
+    def sup_norms(self, p_range: Any) -> NDArray[np.float64]:
+        """Largest ``|psi_i(p)|`` over a scheduling range (method.md (25)).
+
+        As :meth:`Basis.sup_norms`; a range that reaches zero or below on a
+        parameter taken on the log scale is refused (naming ``p_range``).
+        """
+        box = _domains(p_range, self.n_params, required=True)
+        assert box is not None
+        check_positive(np.array(box).T, self._scales, "p_range")
+        return super().sup_norms(p_range)
+
+    def transform(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``p`` (N, Np) on every parameter's scale: ``log10(p)`` on the log scale, else ``p``."""
+        if not self._log.any():
             return p
-        lo = np.array([d[0] for d in self.domain])
-        hi = np.array([d[1] for d in self.domain])
-        return (2.0 * p - (lo + hi)) / (hi - lo)
+        check_positive(p, self._scales)
+        return np.where(self._log, np.log10(np.where(self._log, p, 1.0)), p)
+
+    def scale(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Map ``p`` (N, Np) to ``s``: on its scale, then affinely so the domain becomes [-1, 1]."""
+        u = self.transform(p)
+        if self._ends is None:
+            return u
+        lo, hi = self._ends
+        return (2.0 * u - (lo + hi)) / (hi - lo)
 
     def _var(self, k: int) -> str:
-        base = "s" if self.domain is not None else "p"
-        return base if self.n_params == 1 else f"{base}{k + 1}"
+        index = "" if self.n_params == 1 else str(k + 1)
+        if self._scales[k] == "log":
+            return f"s{index}(log p{index})" if self.domain is not None else f"log10(p{index})"
+        return f"{'s' if self.domain is not None else 'p'}{index}"
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        """The description; ``"scale"`` only when a parameter is not on the linear scale."""
+        out: dict[str, Any] = {
             "kind": self.kind,
             "degree": self.degree,
             "domain": None if self.domain is None else [list(d) for d in self.domain],
             "n_params": self.n_params,
         }
+        if self._log.any():
+            out["scale"] = list(self._scales)
+        return out
 
     def __repr__(self) -> str:
         dom = (
             None if self.domain is None else (self.domain[0] if self.n_params == 1 else self.domain)
         )
-        return f"{type(self).__name__}({self.degree}, domain={dom})"
+        text = f"{type(self).__name__}({self.degree}, domain={dom}"
+        if self._log.any():
+            sc = self._scales[0] if len(set(self._scales)) == 1 else self._scales
+            text += f", scale={sc!r}"
+        return text + ")"
 
 
 class Polynomial(_ScaledBasis):
     """Monomials ``psi_i(p) = s^i``, i = 1..degree, with ``s`` the scaled ``p``.
+
+    ``s`` is ``p`` (or ``log10(p)`` on the log scale) mapped affinely from
+    the domain to [-1, 1].
 
     Parameters
     ----------
@@ -193,11 +260,17 @@ class Polynomial(_ScaledBasis):
     domain : (lo, hi) or sequence of (lo, hi), optional
         Scheduling range mapped affinely to ``s`` in [-1, 1]. Recommended:
         raw values such as p = 48 mm give p^4 = 5.3e6 and a badly scaled
-        problem. None uses ``s = p`` unchanged.
+        problem. None uses ``s = p`` (``log10(p)`` on the log scale) unchanged.
     n_params : int, optional
-        Number of scheduling parameters when ``domain`` is None (default 1).
-        With several parameters the basis holds every monomial of total
-        degree 1..degree.
+        Number of scheduling parameters when ``domain`` is None (default 1,
+        or one per entry of a sequence ``scale``). With several parameters
+        the basis holds every monomial of total degree 1..degree.
+    scale : {"linear", "log"} or sequence of them, optional
+        The scale of every parameter, or one per parameter: ``"log"`` maps
+        ``log10(p)`` (not ``p``) from the log of the domain to [-1, 1], for
+        a variable that spans decades. It needs a domain above zero, and
+        scheduling values above zero wherever the basis is evaluated (a
+        ValueError naming the argument otherwise). Default ``"linear"``.
 
     Examples
     --------
@@ -206,17 +279,28 @@ class Polynomial(_ScaledBasis):
     array([[-1.,  1.],
            [ 0.,  0.],
            [ 1.,  1.]])
+    >>> b = lpvid.Polynomial(2, domain=(0.1, 10.0), scale="log")
+    >>> b([0.1, 1.0, 10.0]), b.names
+    (array([[-1.,  1.],
+           [ 0.,  0.],
+           [ 1.,  1.]]), ['s(log p)', 's(log p)^2'])
 
     """
 
     kind = "polynomial"
 
-    def __init__(self, degree: int, domain: Any = None, n_params: int | None = None) -> None:
-        super().__init__(degree, domain, n_params, domain_required=False)
+    def __init__(
+        self,
+        degree: int,
+        domain: Any = None,
+        n_params: int | None = None,
+        scale: str | Sequence[str] = "linear",
+    ) -> None:
+        super().__init__(degree, domain, n_params, domain_required=False, scale=scale)
 
     @property
     def names(self) -> list[str]:
-        """Names such as ``s``, ``s^2`` or ``s1*s2^2``."""
+        """Names such as ``s``, ``s^2``, ``s1*s2^2``, ``s(log p)^2`` or ``log10(p)^2``."""
         out = []
         for e in self.exponents:
             parts = [self._var(k) + (f"^{d}" if d > 1 else "") for k, d in enumerate(e) if d > 0]
@@ -248,7 +332,7 @@ class Polynomial(_ScaledBasis):
         where these are 2: ``LpvModel`` checks its range this way at every
         construction.
         """
-        return _grid([np.array([lo, hi]) for lo, hi in box])
+        return scale_grid(box, 2)
 
 
 class Legendre(_ScaledBasis):
@@ -264,17 +348,20 @@ class Legendre(_ScaledBasis):
         Highest degree.
     domain : (lo, hi) or sequence of (lo, hi)
         Scheduling range mapped to [-1, 1] (required).
+    scale : {"linear", "log"} or sequence of them, optional
+        The scale of every parameter, or one per parameter, as in
+        :class:`Polynomial`.
 
     """
 
     kind = "legendre"
 
-    def __init__(self, degree: int, domain: Any) -> None:
-        super().__init__(degree, domain, None, domain_required=True)
+    def __init__(self, degree: int, domain: Any, scale: str | Sequence[str] = "linear") -> None:
+        super().__init__(degree, domain, None, domain_required=True, scale=scale)
 
     @property
     def names(self) -> list[str]:
-        """Names such as ``P1(s)`` or ``P1(s1)*P2(s2)``."""
+        """Names such as ``P1(s)``, ``P1(s1)*P2(s2)`` or ``P2(s(log p))``."""
         out = []
         for e in self.exponents:
             parts = [f"P{d}({self._var(k)})" for k, d in enumerate(e) if d > 0]
@@ -377,8 +464,9 @@ def basis_from_dict(d: dict[str, Any]) -> Basis:
 
     """
     kind = d.get("kind")
+    scale = d.get("scale", "linear")  # written only when a parameter is not linear
     if kind == "polynomial":
-        return Polynomial(d["degree"], d.get("domain"), n_params=d.get("n_params"))
+        return Polynomial(d["degree"], d.get("domain"), n_params=d.get("n_params"), scale=scale)
     if kind == "legendre":
-        return Legendre(d["degree"], d["domain"])
+        return Legendre(d["degree"], d["domain"], scale=scale)
     raise ValueError(f"basis: unknown kind {kind!r}")

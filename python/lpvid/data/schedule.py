@@ -9,6 +9,7 @@ domains take).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,13 @@ from lpvid._checks import positive_int, real_array
 from lpvid._graphs import spanning_tree_walk
 
 __all__ = [
+    "SCALES",
     "as_rows",
+    "axis_values",
+    "check_positive",
+    "scale_grid",
+    "decades",
+    "scale_list",
     "between_points",
     "model_range",
     "propagation_order",
@@ -26,6 +33,9 @@ __all__ = [
     "scheduling_range",
     "unit_scaled",
 ]
+
+#: The scales a scheduling parameter may be taken on.
+SCALES = ("linear", "log")
 
 
 def as_rows(p: ArrayLike, name: str = "p") -> NDArray[np.float64]:
@@ -183,3 +193,116 @@ def between_points(p: ArrayLike, steps: int = 8) -> NDArray[np.float64]:
         a, b = arr[parent[q]], arr[q]
         out.append(a + t * (b - a))
     return np.concatenate(out)
+
+
+def scale_list(value: Any, n_params: int, name: str = "scale") -> tuple[str, ...]:
+    """The scale of every scheduling parameter, checked.
+
+    Parameters
+    ----------
+    value : str or sequence of str
+        One of :data:`SCALES` for every parameter, or one per parameter.
+    n_params : int
+        The number of scheduling parameters.
+    name : str
+        Argument name for error messages.
+
+    Returns
+    -------
+    tuple of str
+        One scale per parameter.
+
+    Examples
+    --------
+    >>> from lpvid.data.schedule import scale_list
+    >>> scale_list("log", 2)
+    ('log', 'log')
+
+    """
+    values = [value] * n_params if isinstance(value, str) else value
+    try:
+        values = list(values)
+    except TypeError as exc:
+        raise TypeError(
+            f"{name}: expected 'linear' or 'log', or one of them per scheduling parameter, "
+            f"got {type(value).__name__}"
+        ) from exc
+    if len(values) != n_params:
+        raise ValueError(
+            f"{name}: {len(values)} scales given for {n_params} scheduling parameter(s)"
+        )
+    for v in values:
+        if not isinstance(v, str) or v not in SCALES:
+            raise ValueError(f"{name}: expected 'linear' or 'log' for every parameter, got {v!r}")
+    return tuple(values)
+
+
+def check_positive(p: NDArray[np.float64], scales: tuple[str, ...], name: str = "p") -> None:
+    """Refuse scheduling values at or below zero on a parameter taken on the log scale.
+
+    Parameters
+    ----------
+    p : ndarray, shape (N, Np)
+    scales : tuple of str
+        The scale of every parameter.
+    name : str
+        Argument name for the error message.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, the parameter and its smallest value.
+    """
+    for k, scale in enumerate(scales):
+        if scale == "log" and p.shape[0] and not np.all(p[:, k] > 0):
+            which = "" if len(scales) == 1 else f" (parameter {k + 1})"
+            raise ValueError(
+                f"{name}: a basis on the log scale takes scheduling values above zero; "
+                f"got {float(np.min(p[:, k])):g}{which}"
+            )
+
+
+def axis_values(lo: float, hi: float, count: int, scale: str = "linear") -> NDArray[np.float64]:
+    """``count`` values from ``lo`` to ``hi``, evenly spread on the parameter's scale.
+
+    Evenly in the value (``"linear"``) or in its logarithm (``"log"``,
+    ``lo > 0``); the ends are ``lo`` and ``hi`` exactly.
+
+    Examples
+    --------
+    >>> from lpvid.data.schedule import axis_values
+    >>> axis_values(1.0, 100.0, 3, "log")
+    array([  1.,  10., 100.])
+
+    """
+    if scale != "log":
+        return np.linspace(lo, hi, count)
+    out = np.geomspace(lo, hi, count)
+    out[0], out[-1] = lo, hi
+    return out
+
+
+def decades(lo: float, hi: float) -> float:
+    """How many decades ``[lo, hi]`` spans: ``log10(hi / lo)``, NaN unless ``0 < lo``."""
+    return float(np.log10(hi / lo)) if lo > 0 and hi > 0 else float("nan")
+
+
+def scale_grid(
+    pairs: Sequence[tuple[float, float]], per_axis: int, scales: Sequence[str] | None = None
+) -> NDArray[np.float64]:
+    """Every combination of ``per_axis`` values per parameter, shape (per_axis^Np, Np).
+
+    Each axis from ``lo`` to ``hi``, evenly on its parameter's scale
+    (:func:`axis_values`; ``scales`` default linear on every parameter);
+    the first parameter varies slowest.
+
+    Examples
+    --------
+    >>> from lpvid.data.schedule import scale_grid
+    >>> scale_grid([(0.0, 1.0), (1.0, 100.0)], 2, ("linear", "log")).tolist()
+    [[0.0, 1.0], [0.0, 100.0], [1.0, 1.0], [1.0, 100.0]]
+
+    """
+    scales = tuple(scales) if scales is not None else ("linear",) * len(pairs)
+    axes = [axis_values(lo, hi, per_axis, sc) for (lo, hi), sc in zip(pairs, scales, strict=True)]
+    return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)

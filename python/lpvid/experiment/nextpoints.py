@@ -29,14 +29,15 @@ the one farthest from every measured (and already chosen) point is taken.
 
 **Candidates.** By default a grid over the range (the model's basis
 domain, else the data's range): 101 values for one parameter, 21 per
-parameter for two, 9 for three, 5 beyond; ``U`` is averaged on the same
-grid. Candidates outside the range are refused (the basis extrapolates
+parameter for two, 9 for three, 5 beyond, evenly on the basis's scale of
+every parameter (in ``log10(p)`` on the log scale); ``U`` is averaged on
+the same grid. Candidates outside the range are refused (the basis extrapolates
 there); measured values are left out (one FRF per scheduling value), and
 repeated candidates count once.
 
 **The new measurement's noise.** ``sigma_c`` is by default the data's
 sigma at the measured point nearest ``p_c`` (each scheduling parameter
-scaled to its range), or what the caller gives.
+scaled to its range, on the basis's scale), or what the caller gives.
 
 **What it cannot see, and the committee that can.** ``C`` is the
 covariance of the model on its support (dropped groups held at zero) on
@@ -49,7 +50,7 @@ they disagree is where the data are silent. Then the criterion is the
 of :meth:`lpvid.pipeline.between.Between.spread` over the grid, and a
 measurement at ``c`` is taken to settle it around ``c``: ``s(p)`` becomes
 ``s(p) min(1, |p - c| / h)``, ``h`` the spacing the points will have (the
-range over ``N + k``, every parameter scaled to its range). The candidate
+range over ``N + k``, every parameter scaled to its range on its scale). The candidate
 that lowers the grid mean of ``s^2`` most is suggested (a narrow spike of
 one member counts for little, a wide disagreement for much), ``k > 1``
 greedily, each settling its neighbourhood before the next; ties as
@@ -69,7 +70,7 @@ from lpvid._checks import positive_int, real_array
 from lpvid._rows import unique_rows
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
-from lpvid.data.schedule import range_pairs
+from lpvid.data.schedule import range_pairs, scale_grid
 from lpvid.experiment.design import (
     TIE,
     GridParts,
@@ -93,6 +94,8 @@ __all__ = ["Suggestion", "next_points", "suggest_points"]
 #: Slack, relative to the range, for candidates on its edge and for
 #: candidates at a measured point.
 _SLACK = 1e-9
+#: The scale of every scheduling parameter (``Basis.scales``), None for linear on every one.
+Scales = tuple[str, ...] | None
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,22 +157,25 @@ class Suggestion:
         return "\n".join(lines)
 
 
-def _range_grid(pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
+def _range_grid(pairs: list[tuple[float, float]], scales: Scales = None) -> NDArray[np.float64]:
     """The default grid over the range, shape (Q, Np).
 
-    101 values for one parameter, 21 per parameter for two, 9 for three, 5 beyond.
+    101 values for one parameter, 21 per parameter for two, 9 for three, 5
+    beyond; evenly on every parameter's scale (``scales``, default linear).
     """
-    per_axis = {1: 101, 2: 21, 3: 9}.get(len(pairs), 5)
-    axes = [np.linspace(lo, hi, per_axis) for lo, hi in pairs]
-    mesh = np.meshgrid(*axes, indexing="ij")
-    return np.stack([g.ravel() for g in mesh], axis=1)
+    return scale_grid(pairs, {1: 101, 2: 21, 3: 9}.get(len(pairs), 5), scales)
 
 
 def _unmeasured(
-    cands: NDArray[np.float64], measured: NDArray[np.float64], pairs: list[tuple[float, float]]
+    cands: NDArray[np.float64],
+    measured: NDArray[np.float64],
+    pairs: list[tuple[float, float]],
+    scales: Scales = None,
 ) -> NDArray[np.float64]:
     """The candidates (M, Np) that are not measured scheduling values (within the slack)."""
-    near = np.abs(_scaled(cands, pairs)[:, None, :] - _scaled(measured, pairs)[None, :, :])
+    near = np.abs(
+        _scaled(cands, pairs, scales)[:, None, :] - _scaled(measured, pairs, scales)[None, :, :]
+    )
     return cands[~np.any(np.all(near <= _SLACK, axis=2), axis=1)]
 
 
@@ -185,10 +191,21 @@ def default_candidates(p_range: Any, measured: ArrayLike) -> NDArray[np.float64]
     return _unmeasured(_range_grid(pairs), rows, pairs)
 
 
-def _scaled(p: NDArray[np.float64], pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
+def _scaled(
+    p: NDArray[np.float64], pairs: list[tuple[float, float]], scales: Scales = None
+) -> NDArray[np.float64]:
+    """``p`` (M, Np) as the fraction of the range on every parameter's scale (default linear).
+
+    On the log scale the fraction of ``log10(p)`` between ``log10(lo)`` and
+    ``log10(hi)`` (``p`` and ``lo`` above zero: the basis's domain).
+    """
     lo = np.array([a for a, _ in pairs])
     hi = np.array([b for _, b in pairs])
-    return (p - lo) / (hi - lo)
+    out = (p - lo) / (hi - lo)
+    for k, scale in enumerate(scales or ()):
+        if scale == "log":
+            out[:, k] = np.log10(p[:, k] / lo[k]) / np.log10(hi[k] / lo[k])
+    return out
 
 
 def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
@@ -224,7 +241,9 @@ def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.floa
     return arr[np.sort(first)]
 
 
-def _noise(data: FrfData, candidates: NDArray, pairs: list, sigma: Any) -> NDArray[np.float64]:
+def _noise(
+    data: FrfData, candidates: NDArray, pairs: list, sigma: Any, scales: Scales = None
+) -> NDArray[np.float64]:
     """The standard deviation of a measurement at every candidate: (M, F, l, r)."""
     shape = data.G.shape[1:]
     if sigma is not None:
@@ -239,8 +258,8 @@ def _noise(data: FrfData, candidates: NDArray, pairs: list, sigma: Any) -> NDArr
         if np.any(s <= 0):
             raise ValueError("sigma: standard deviations must be > 0 everywhere")
         return np.broadcast_to(s, (len(candidates), *shape))
-    measured = _scaled(data.p.reshape(data.n_points, -1), pairs)
-    at = _scaled(candidates, pairs)
+    measured = _scaled(data.p.reshape(data.n_points, -1), pairs, scales)
+    at = _scaled(candidates, pairs, scales)
     nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
     return data.sigma[nearest]
 
@@ -307,21 +326,22 @@ def suggest_points(
     model, data = cov.model, result.data
     n_params = model.basis.n_params
     pairs = range_pairs(identify_range(model, data), n_params)
-    grid = _range_grid(pairs)
+    scales = model.basis.scales
+    grid = _range_grid(pairs, scales)
     cands = grid if candidates is None else _candidates(candidates, pairs)
-    cands = _unmeasured(cands, data.p.reshape(data.n_points, -1), pairs)
+    cands = _unmeasured(cands, data.p.reshape(data.n_points, -1), pairs, scales)
     if len(cands) < k:
         raise ValueError(
             f"k: {k} point(s) asked for, but only {len(cands)} candidate(s) are not measured yet"
         )
     between = getattr(result, "between", None)
     if between is not None and between.members:
-        return _by_committee(result, between, cands, grid, pairs, k)
+        return _by_committee(result, between, cands, grid, pairs, scales, k)
     index = _lti_index(model)
     f = data.freqs_hz
     parts = GridParts(model, f, grid)
     W = target(parts, index)
-    R = factor(frozen_grams(model, f, cands, 1.0 / _noise(data, cands, pairs, sigma) ** 2))
+    R = factor(frozen_grams(model, f, cands, 1.0 / _noise(data, cands, pairs, sigma, scales) ** 2))
     picks, variance, after = greedy_update(
         cov.theta,
         W,
@@ -329,8 +349,8 @@ def suggest_points(
         coefficient_weights(model, cands),
         R,
         k,
-        _scaled(cands, pairs),
-        _scaled(data.p.reshape(data.n_points, -1), pairs),
+        _scaled(cands, pairs, scales),
+        _scaled(data.p.reshape(data.n_points, -1), pairs, scales),
     )
     points = cands[picks]
     return Suggestion(
@@ -355,14 +375,20 @@ def _relative_spread(between: Any, freqs_hz: NDArray, p: NDArray) -> NDArray[np.
 
 
 def _by_committee(
-    result: IdentifyResult, between: Any, cands: NDArray, grid: NDArray, pairs: list, k: int
+    result: IdentifyResult,
+    between: Any,
+    cands: NDArray,
+    grid: NDArray,
+    pairs: list,
+    scales: Scales,
+    k: int,
 ) -> Suggestion:
     """The committee's criterion (module notes)."""
     data = result.data
     f = data.freqs_hz
-    measured = _scaled(data.p.reshape(data.n_points, -1), pairs)
+    measured = _scaled(data.p.reshape(data.n_points, -1), pairs, scales)
     h = 1.0 / (data.n_points + k)
-    at, on_grid = _scaled(cands, pairs), _scaled(grid, pairs)
+    at, on_grid = _scaled(cands, pairs, scales), _scaled(grid, pairs, scales)
     band = _relative_spread(between, f, grid)
     gap = np.min(np.linalg.norm(at[:, None, :] - measured[None, :, :], axis=2), axis=1)
     # a measurement at a candidate settles the spread around it, to zero at the candidate

@@ -1,15 +1,16 @@
 """The lpvid model file: versioned JSON, written whole or not at all.
 
-Format (version 1)::
+Format (version 1, or 2 when a scheduling parameter is on the log scale)::
 
     {
       "format": "lpvid-model",
-      "version": 1,
+      "version": 1 or 2,
       "content": {
         "n_states": n, "n_inputs": r, "n_outputs": l, "n_basis": Nb,
         "Ts": float or null,              # null: continuous time
         "basis": {"kind": "polynomial" | "legendre", "degree": d,
-                  "domain": [[lo, hi], ...] or null, "n_params": Np},
+                  "domain": [[lo, hi], ...] or null, "n_params": Np,
+                  "scale": ["linear" | "log", ...]},   # version 2 only
         "p_range": [lo, hi] or [[lo, hi], ...] or null,
         "info": {...},                    # free-form notes (LpvModel.info)
         "A": [...], "B": [...], "C": [...], "D": [...]   # nested lists (Nb+1, rows, cols)
@@ -19,14 +20,19 @@ Format (version 1)::
 
 Floats are written with Python's shortest round-trip representation, so a
 model read back is equal to the one saved, to the last bit. The checksum
-catches a damaged file.
+catches a damaged file. A basis with a parameter on the log scale
+(``Polynomial(..., scale="log")``) writes its ``"scale"`` and makes the file
+version 2, which lpvid before the scale refuses rather than read as a
+linear basis; every other file stays version 1, as before. A file without
+``"scale"`` is read as linear on every parameter.
 
 MATLAB export (``.mat``, readable with ``load`` in MATLAB): ``A`` as an
 ``n x n x (Nb+1)`` array with ``A(:,:,1)`` the constant part and
 ``A(:,:,i+1)`` the coefficient of ``psi_i`` (likewise ``B``, ``C``, ``D``),
 ``Ts`` (empty for continuous time), ``basis_kind``, ``basis_degree``,
 ``basis_domain`` (one row ``[lo hi]`` per scheduling parameter, empty for
-none), ``basis_n_params``, ``basis_names``, ``p_range`` (empty for none),
+none), ``basis_n_params``, ``basis_scale`` (a cell array, ``'linear'`` or
+``'log'`` per parameter), ``basis_names``, ``p_range`` (empty for none),
 ``description``, and ``lpvid_model``: the JSON document above as text.
 
 Reading a ``.mat`` file reads its arrays: the model returned holds the
@@ -37,7 +43,9 @@ with the names of the variables that differ; a file edited in MATLAB can be
 read as edited by removing ``lpvid_model`` from it (``clear lpvid_model``
 before saving). Without ``lpvid_model`` the model is built from the
 variables alone (``D``, ``basis_domain``, ``basis_n_params``,
-``basis_names`` and ``p_range`` may then be absent), and ``info`` is empty.
+``basis_scale``, ``basis_names`` and ``p_range`` may then be absent), and
+``info`` is empty. ``basis_scale`` may be absent in every ``.mat`` file
+(files written before it): linear on every parameter.
 
 This module works on the model through its attributes (those of
 ``lpvid.model._protocol.ModelLike``) and is handed the class to build
@@ -57,12 +65,22 @@ import numpy as np
 
 from lpvid._files import mat_variables, write_atomic
 from lpvid.data.basis import basis_from_dict
+from lpvid.data.schedule import scale_list
 from lpvid.model._protocol import ModelLike
 
-__all__ = ["FORMAT", "VERSION", "MATRICES", "save_model", "load_model", "model_content"]
+__all__ = [
+    "FORMAT",
+    "VERSION",
+    "MATRICES",
+    "file_version",
+    "save_model",
+    "load_model",
+    "model_content",
+]
 
 FORMAT = "lpvid-model"
-VERSION = 1
+#: The newest file version: 2 holds a basis's scales (:func:`file_version`).
+VERSION = 2
 #: The coefficient arrays of a model, in file order.
 MATRICES = ("A", "B", "C", "D")
 
@@ -107,10 +125,25 @@ def _build(cls: Callable[..., ModelT], content: dict[str, Any]) -> ModelT:
     return model
 
 
+def file_version(content: dict[str, Any]) -> int:
+    """The version a model's file is written as: 2 when its basis has scales, else 1.
+
+    A basis on the log scale writes ``"scale"``; an lpvid that reads
+    version 1 only would take it for a linear basis, so such a file is
+    version 2, which that lpvid refuses.
+    """
+    return 2 if "scale" in content["basis"] else 1
+
+
+def _scales(basis: dict[str, Any]) -> list[str]:
+    """The scale of every parameter a basis description holds (linear where it says none)."""
+    return list(basis.get("scale") or ["linear"] * int(basis["n_params"]))
+
+
 def _document(content: dict[str, Any]) -> bytes:
     doc = {
         "format": FORMAT,
-        "version": VERSION,
+        "version": file_version(content),
         "content": content,
         "sha256": hashlib.sha256(_canonical(content)).hexdigest(),
     }
@@ -147,11 +180,13 @@ def _matlab_variables(content: dict[str, Any], names: list[str], document: str) 
         basis_degree=np.array(basis["degree"], dtype=float),
         basis_domain=np.zeros((0, 2)) if domain is None else np.array(domain, dtype=float),
         basis_n_params=np.array(basis["n_params"], dtype=float),
+        basis_scale=np.array(_scales(basis), dtype=object),
         basis_names=np.array(names, dtype=object),
         p_range=np.zeros((0, 2)) if p_range is None else np.atleast_2d(p_range),
         description=(
             "lpvid LPV model: X(p) = X(:,:,1) + sum_i psi_i(p) X(:,:,i+1) for X in A, B, C, D; "
-            "psi_i as named in basis_names, with s = p mapped from basis_domain to [-1, 1]; "
+            "psi_i as named in basis_names, with s = p mapped from basis_domain to [-1, 1] "
+            "(log10(p) from log10(basis_domain) where basis_scale is 'log'); "
             + ("continuous time" if ts is None else f"discrete time, Ts = {ts:g} s")
         ),
         lpvid_model=document,
@@ -183,10 +218,10 @@ def _parse(data: bytes, name: str) -> dict[str, Any]:
         ) from exc
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise ValueError(f"path: {name} is not an lpvid model file")
-    if doc.get("version") != VERSION:
+    if doc.get("version") not in range(1, VERSION + 1):
         raise ValueError(
             f"path: {name} has model file version {doc.get('version')!r}; this lpvid reads "
-            f"version {VERSION}"
+            f"versions 1 to {VERSION}"
         )
     content = doc.get("content")
     if (
@@ -314,6 +349,11 @@ def _from_variables(raw: dict[str, Any], require_all: bool) -> dict[str, Any]:
         if not float(basis[key]).is_integer():
             raise ValueError(f"basis_{key}: expected an integer, got {basis[key]}")
         basis[key] = int(basis[key])
+    # Optional even beside lpvid_model: files written before the scale have none.
+    if "basis_scale" in raw:
+        scale = scale_list(_texts(raw["basis_scale"]), basis["n_params"], "basis_scale")
+        if "log" in scale:
+            basis["scale"] = list(scale)
     p_range = _pairs(get("p_range", optional=True), "p_range")
     if p_range is not None and len(p_range) == 1:
         p_range = p_range[0]
@@ -334,8 +374,8 @@ def _from_variables(raw: dict[str, Any], require_all: bool) -> dict[str, Any]:
     built = basis_from_dict(basis).names
     if names is not None and names != built:
         raise ValueError(
-            f"basis_names: {names} do not match the basis of basis_kind, basis_degree and "
-            f"basis_domain ({built})"
+            f"basis_names: {names} do not match the basis of basis_kind, basis_degree, "
+            f"basis_domain and basis_scale ({built})"
         )
     return content
 
@@ -365,6 +405,8 @@ def _differences(
             out.append(f"basis_{key}")
     if not same_array(basis["domain"], other.get("domain"), pairs=True):
         out.append("basis_domain")
+    if _scales(basis) != _scales(other):
+        out.append("basis_scale")
     # basis_names were checked against the file's own basis variables
     if not same_array(content["p_range"], embedded.get("p_range"), pairs=True):
         out.append("p_range")

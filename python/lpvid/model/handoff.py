@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from lpvid._checks import positive_int, real_array
 from lpvid._files import write_atomic
-from lpvid.data.schedule import range_pairs
+from lpvid.data.schedule import axis_values, range_pairs
 from lpvid.model._protocol import ModelLike
 
 __all__ = ["GRID_POINTS", "SignalNames", "save_grid", "signal_names", "to_control_lpv"]
@@ -256,7 +256,10 @@ def _grid_axes(model: ModelLike, grid: Any, count: int) -> list[NDArray[np.float
                 "grid: the model has no p_range to spread the grid over; give the grid values"
             )
         pairs = range_pairs(model.p_range, n_params)
-        return [np.linspace(lo, hi, count) for lo, hi in pairs]
+        return [
+            axis_values(lo, hi, count, sc)
+            for (lo, hi), sc in zip(pairs, model.basis.scales, strict=True)
+        ]
     axes = [grid] if n_params == 1 else list(grid)
     if len(axes) != n_params:
         raise ValueError(
@@ -323,7 +326,8 @@ def save_grid(
     grid : array_like or sequence of array_like, optional
         Strictly increasing scheduling values (one array per parameter for
         several: a full grid). Default: ``count`` evenly spaced values per
-        parameter over ``model.p_range``.
+        parameter over ``model.p_range`` (evenly in ``log10(p)`` for a
+        parameter the basis takes on the log scale).
     names : FrfData or lpvid.datasets.Dataset, optional
         Where the names come from (see :func:`signal_names`).
     count : int, optional

@@ -68,6 +68,22 @@ def _check_basis(basis: Basis, data: FrfData) -> None:
         )
 
 
+def _check_scale(basis: Basis, data: FrfData, validation: FrfData | None) -> None:
+    """A basis on the log scale against scheduling values at or below zero in the data."""
+    for what, d in (("data", data), ("validation data", validation)):
+        if d is None:
+            continue
+        p = d.p.reshape(d.n_points, -1)
+        for k, scale in enumerate(basis.scales):
+            if scale == "log" and not np.all(p[:, k] > 0):
+                which = "" if basis.n_params == 1 else f" of parameter {k + 1}"
+                raise ValueError(
+                    f"basis: takes the scheduling{which} on the log scale, which needs values "
+                    f"above zero; the {what} reach {float(np.min(p[:, k])):g} (take it on "
+                    "scale='linear')"
+                )
+
+
 def _range(n: int, basis: Basis, data: FrfData, p_range: Any) -> Any:
     """The scheduling range the models are judged on, as :func:`lpvid.identify` derives it.
 
@@ -158,6 +174,7 @@ class Problem:
                 f"settings: expected an IdentifySettings, got {type(self.settings).__name__}"
             )
         _check_basis(basis, data)
+        _check_scale(basis, data, validation)
         check_order(n, basis, data, self.fixed)
         check_local_order(n, data)
         for name, value in (

@@ -173,7 +173,8 @@ def frf_std_map(
     freqs_hz : array_like, shape (F,)
         Frequencies in Hz, increasing.
     p : array_like, shape (P,)
-        Scheduling values, increasing.
+        Scheduling values, increasing (drawn on a log axis for a basis on
+        the log scale).
     output, input : int
         Which output and input (0-based).
     level : float
@@ -224,6 +225,7 @@ def frf_std_map(
         for m in real_array(p_marks, "p_marks").ravel():
             ax.axhline(m, color="white", lw=0.6, ls="--", alpha=0.8)
     ax.set_xscale(_frequency_scale(f))
+    ax.set_yscale(model.basis.scales[0])  # the scheduling on the basis's scale
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(_pretty(p_label))
     if title:

@@ -57,7 +57,9 @@ def magnitude_surface(
     freqs_hz : array_like, shape (F,)
         Frequencies in Hz, increasing.
     p : array_like, shape (P,)
-        Scheduling values, increasing, e.g. ``np.linspace(lo, hi, 60)``.
+        Scheduling values, increasing, e.g. ``np.linspace(lo, hi, 60)``
+        (``np.geomspace`` for a basis on the log scale, whose scheduling
+        axis is then drawn on a log scale).
     output, input : int
         Which output and input (0-based).
     phase : bool
@@ -122,6 +124,7 @@ def magnitude_surface(
         if gid == "phase":
             _degree_ticks(bar.ax.yaxis, float(np.min(values)), float(np.max(values)))
         ax.set_ylabel(_pretty(p_label))
+        ax.set_yscale(model.basis.scales[0])
         ax.set_xscale(_frequency_scale(f))
         if marks is not None:
             for m in marks:

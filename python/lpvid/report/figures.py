@@ -65,7 +65,9 @@ def report_jobs(result: IdentifyResult, labels: dict[str, Any]) -> list[FigureJo
                 {"title": "validation points", **labels},
             )
         )
-    p_grid = np.linspace(*data.p_range, 60) if data.n_params == 1 else None
+    # Even on the basis's scale (log10(p) for a basis on the log scale).
+    spread = np.geomspace if model.basis.scales[0] == "log" else np.linspace
+    p_grid = spread(*data.p_range, 60) if data.n_params == 1 else None
     if p_grid is not None:
         jobs.append(
             FigureJob(

@@ -28,6 +28,7 @@ import numpy as np
 
 from lpvid import _core
 from lpvid._core import FitOutcome
+from lpvid.data.schedule import axis_values
 from lpvid.model._view import model_view
 from lpvid.model.frozen import frozen_poles
 from lpvid.model.lpv import LpvModel
@@ -53,14 +54,14 @@ def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[
     """The core's check points for ``model`` over the range, with ``extra`` scheduling values."""
     if len(pairs) == 1:
         lo, hi = pairs[0]
-        p = np.linspace(lo, hi, CHECK_POINTS)
+        p = axis_values(lo, hi, CHECK_POINTS, model.basis.scales[0])
         stride = STRIDE
         if extra:
             p = np.unique(np.concatenate([p, np.ravel(extra)]))
             stride = 1  # the points added are always evaluated (module notes)
         pts = p[:, None]
     else:
-        pts, stride = box_grid(pairs, BOX_POINTS), 1
+        pts, stride = box_grid(pairs, BOX_POINTS, model.basis.scales), 1
         if extra:
             pts = np.concatenate([pts, np.asarray(extra, dtype=float).reshape(-1, len(pairs))])
     view = model_view(model, model.basis_values(pts))
@@ -86,7 +87,7 @@ def stabilised(model: LpvModel, p_range: Any = None, margin: float = 1e-3) -> Lp
     if model.Ts is not None:
         A *= (1.0 - margin) / max(1.0 - rep.margin, 1e-300)
         return _with_A(model, A)
-    pts = box_grid(pairs, 2001) if len(pairs) > 1 else np.linspace(*pairs[0], 2001)[:, None]
+    pts = box_grid(pairs, 2001, model.basis.scales)
     extra = np.atleast_2d(np.asarray(rep.worst_p, dtype=float)).reshape(1, -1)
     poles = frozen_poles(model, np.concatenate([pts, extra]))
     alpha = max(float(np.max(poles.real)), 0.0) + margin * float(np.max(np.abs(poles)))

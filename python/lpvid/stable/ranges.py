@@ -3,7 +3,10 @@
 A range follows lpvid's convention (:mod:`lpvid.data.schedule`): ``(lo, hi)``
 for one scheduling parameter, ``[(lo, hi), ...]`` for several. Where the
 basis has a domain, the range must lie inside it: outside, the model is
-an extrapolation nobody fitted.
+an extrapolation nobody fitted. A parameter the basis takes on the log
+scale is gridded evenly in its logarithm and mapped from [-1, 1]
+geometrically (:func:`to_p`), so that ``A(p)`` stays a polynomial in the
+mapped variable.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid.data.basis import Legendre, Polynomial
-from lpvid.data.schedule import range_pairs
+from lpvid.data.schedule import range_pairs, scale_grid
 from lpvid.model.frozen import frozen_A
 from lpvid.model.lpv import LpvModel
 
@@ -66,18 +69,31 @@ def as_convention(pairs: list[tuple[float, float]]) -> Any:
     return pairs[0] if len(pairs) == 1 else list(pairs)
 
 
-def box_grid(pairs: list[tuple[float, float]], max_points: int) -> NDArray[np.float64]:
-    """A uniform grid over the box with at most about ``max_points`` points, shape (M, Np)."""
+def box_grid(
+    pairs: list[tuple[float, float]], max_points: int, scales: tuple[str, ...] | None = None
+) -> NDArray[np.float64]:
+    """A grid over the box with at most about ``max_points`` points, shape (M, Np).
+
+    Even on every parameter's scale (``scales``, default linear: see
+    :func:`lpvid.data.schedule.axis_values`).
+    """
     per_axis = max(2, int(np.floor(max_points ** (1.0 / len(pairs)))))
-    axes = [np.linspace(lo, hi, per_axis) for lo, hi in pairs]
-    mesh = np.meshgrid(*axes, indexing="ij")
-    return np.stack([g.ravel() for g in mesh], axis=1)
+    return scale_grid(pairs, per_axis, scales)
 
 
-def to_p(t: NDArray[np.float64], pair: tuple[float, float]) -> NDArray[np.float64]:
-    """Map ``t`` in [-1, 1] affinely onto ``(lo, hi)``."""
+def to_p(
+    t: NDArray[np.float64], pair: tuple[float, float], scale: str = "linear"
+) -> NDArray[np.float64]:
+    """Map ``t`` in [-1, 1] onto ``(lo, hi)``: affinely, or on the log scale geometrically.
+
+    On the log scale ``log10(p)`` is affine in ``t`` (``p = lo (hi/lo)^((t+1)/2)``),
+    so that a basis on that scale is a polynomial in ``t``.
+    """
     lo, hi = pair
-    return lo + (np.asarray(t, dtype=float) + 1.0) * (0.5 * (hi - lo))
+    u = (np.asarray(t, dtype=float) + 1.0) * 0.5
+    if scale == "log":
+        return np.clip(lo * (hi / lo) ** u, lo, hi)
+    return lo + u * (hi - lo)
 
 
 def polynomial_A(model: LpvModel, pairs: list[tuple[float, float]]) -> NDArray[np.float64] | None:
@@ -85,7 +101,9 @@ def polynomial_A(model: LpvModel, pairs: list[tuple[float, float]]) -> NDArray[n
 
     Exactly polynomial for an LTI model and for :class:`lpvid.Polynomial`
     and :class:`lpvid.Legendre` bases of one scheduling parameter (both
-    polynomials of ``p`` after an affine map); None otherwise. The
+    polynomials of ``p``, or of ``log10(p)`` on the log scale, after an
+    affine map; ``t`` is mapped onto the range by :func:`to_p` on the same
+    scale); None otherwise. The
     coefficients come from the model's own values at Chebyshev points and
     are checked at other points.
 
@@ -100,13 +118,14 @@ def polynomial_A(model: LpvModel, pairs: list[tuple[float, float]]) -> NDArray[n
     if len(pairs) != 1 or not isinstance(basis, (Polynomial, Legendre)):
         return None
     d = int(basis.degree)
+    scale = basis.scales[0]
     t = np.cos(np.pi * (np.arange(d + 1) + 0.5) / (d + 1))
-    values = frozen_A(model, to_p(t, pairs[0])[:, None])
+    values = frozen_A(model, to_p(t, pairs[0], scale)[:, None])
     V = np.polynomial.polynomial.polyvander(t, d)
     n = model.n_states
     coef = np.linalg.solve(V, values.reshape(d + 1, -1)).reshape(d + 1, n, n)
     check = np.linspace(-1.0, 1.0, 7)
-    direct = frozen_A(model, to_p(check, pairs[0])[:, None])
+    direct = frozen_A(model, to_p(check, pairs[0], scale)[:, None])
     again = np.tensordot(np.polynomial.polynomial.polyvander(check, d), coef, axes=1)
     if np.max(np.abs(again - direct)) > 1e-8 * max(1.0, float(np.max(np.abs(direct)))):
         return None

@@ -13,7 +13,8 @@ lambda_j = 0``), a polynomial eigenvalue problem in ``p`` whose real roots
 in the range are computed (the guardian map of Saydy, Tits and Abed). The
 margin is then evaluated at these roots, between every two of them and on
 a grid, so that a window of instability, however narrow, is found (up to
-the accuracy of the computed roots). Otherwise (several parameters, other
+the accuracy of the computed roots); on a basis's log scale the same holds
+in ``log10(p)`` (:func:`lpvid.stable.ranges.to_p`). Otherwise (several parameters, other
 bases, or a pencil too large) the margin is evaluated on a fine grid; the
 smallest local minima are refined in both cases (Brent's method in one
 dimension, Nelder-Mead in several) for ``.margin`` and ``.worst_p``.
@@ -333,6 +334,7 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
     coef = polynomial_A(model, pairs)
     crossings = np.zeros(0)
     method = "grid"
+    scales = model.basis.scales
     if len(pairs) == 1:
         roots = None if coef is None else _crossings(coef, discrete)
         if roots is not None:
@@ -340,18 +342,18 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
             knots = np.unique(np.concatenate([[-1.0, 1.0], roots]))
             mids = 0.5 * (knots[:-1] + knots[1:])
             ts = np.unique(np.concatenate([np.linspace(-1.0, 1.0, 201), roots, mids]))
-            crossings = to_p(roots, pairs[0])
+            crossings = to_p(roots, pairs[0], scales[0])
         else:
             ts = np.linspace(-1.0, 1.0, GRID_POINTS)
         if pairs[0][0] == pairs[0][1]:  # an LTI model: one frozen model
             ts = np.zeros(1)
-        ps = to_p(ts, pairs[0])
+        ps = to_p(ts, pairs[0], scales[0])
         ms = margins(model, ps[:, None])
         worst, margin, extra = _refine_1d(model, ps, ms)
         worst_p: Any = worst
         checked = ps.size + extra
     else:
-        pts = box_grid(pairs, GRID_POINTS)
+        pts = box_grid(pairs, GRID_POINTS, scales)
         ms = margins(model, pts)
         worst_p, margin, extra = _refine_nd(model, pts, ms, pairs)
         checked = pts.shape[0] + extra

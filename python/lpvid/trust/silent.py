@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid.data.frf import FrfData
-from lpvid.data.schedule import range_pairs
+from lpvid.data.schedule import range_pairs, scale_grid
 from lpvid.fit.judge import identify_range
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
@@ -123,13 +123,12 @@ class SilentCount:
 def range_grid(model: LpvModel, data: FrfData) -> NDArray[np.float64]:
     """A grid over the scheduling range the model is judged on: (Q, Np).
 
-    41 values for one parameter, 9 per axis for two, 5 for three, 3 beyond.
+    41 values for one parameter, 9 per axis for two, 5 for three, 3 beyond,
+    evenly on every parameter's scale (``log10(p)`` for a basis on the log
+    scale).
     """
     pairs = range_pairs(identify_range(model, data), model.basis.n_params)
-    per_axis = GRID.get(len(pairs), 3)
-    axes = [np.linspace(lo, hi, per_axis) for lo, hi in pairs]
-    mesh = np.meshgrid(*axes, indexing="ij")
-    return np.stack([g.ravel() for g in mesh], axis=1)
+    return scale_grid(pairs, GRID.get(len(pairs), 3), model.basis.scales)
 
 
 def _sym(M: NDArray[np.float64]) -> NDArray[np.float64]:
