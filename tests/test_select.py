@@ -74,7 +74,9 @@ def test_known_system_gives_its_order_and_degree(grid):
     assert grid.hints.orders[0] == 4
     assert "order 4, poly:2" in grid.summary() and "order hints" in grid.summary()
     table = grid.table().splitlines()
-    assert len(table) == 1 + 15 and sum(line.startswith("->") for line in table) == 1
+    assert len(table) == 1 + 15 + 1 and sum(line.startswith("->") for line in table) == 1
+    # the last line: the scale rule's verdict (p in [0, 1] reaches zero: no log twin)
+    assert table[-1].startswith("scale: the bases as given (no log twin): p in [0, 1] reaches zero")
 
 
 def test_rows_hold_each_pairs_identify_result(grid, quadratic):

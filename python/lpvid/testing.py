@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._rod import diffusion_rod  # a heat rod whose conductivity spans decades
 from lpvid.data.basis import Polynomial
 from lpvid.data.frf import FrfData
 from lpvid.model.lpv import LpvModel
@@ -32,6 +33,7 @@ __all__ = [
     "one_group_lpv",
     "crossing_lpv",
     "synthetic_parametric",
+    "diffusion_rod",
     "direct_frf",
     "noisy_data",
     "worst_relative_error",

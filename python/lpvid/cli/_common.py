@@ -18,6 +18,7 @@ __all__ = [
     "OPTIONS",
     "Misuse",
     "Parser",
+    "add_scale",
     "basis_of",
     "fixed_of",
     "labels_of",
@@ -67,6 +68,23 @@ def add_domain(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_scale(parser: argparse.ArgumentParser, choices: tuple[str, ...], default: str) -> None:
+    """The ``--scale`` option: the scale every scheduling parameter is taken on."""
+    more = (
+        "; auto: the data's range on both scales where it is above zero and spans more "
+        "than a decade, else linear"
+        if "auto" in choices
+        else ""
+    )
+    parser.add_argument(
+        "--scale",
+        choices=choices,
+        default=default,
+        help=f"scale of the scheduling in the basis: log follows log10(p), for a variable that "
+        f"spans decades{more} (default {default})",
+    )
+
+
 def add_outputs(parser: argparse.ArgumentParser) -> None:
     """``--out`` (required), ``--no-figures`` and ``--quiet`` of ``fit`` and ``select``."""
     parser.add_argument("--out", required=True, help="output folder")
@@ -97,7 +115,11 @@ def printer(quiet: bool) -> Any:
 
 
 def basis_of(
-    spec: str, domain: Any, data: lpvid.FrfData, validation: lpvid.FrfData | None
+    spec: str,
+    domain: Any,
+    data: lpvid.FrfData,
+    validation: lpvid.FrfData | None,
+    scale: str = "linear",
 ) -> lpvid.Basis:
     kind, _, text = spec.partition(":")
     if kind not in ("poly", "legendre") or not text.isdigit():
@@ -132,10 +154,16 @@ def basis_of(
                     f"values of {name} ({frf.p.min():g} to {frf.p.max():g})"
                 )
         domain = (domain[0], domain[1])
+    low = min(lo for lo, _ in ([domain] if data.n_params == 1 else domain))
+    if scale == "log" and low <= 0:
+        raise Misuse(
+            f"--scale: log needs scheduling values above zero; the range reaches {low:g} "
+            "(leave --scale out)"
+        )
     try:
         if kind == "poly":
-            return lpvid.Polynomial(degree, domain=domain)
-        return lpvid.Legendre(degree, domain=domain)
+            return lpvid.Polynomial(degree, domain=domain, scale=scale)
+        return lpvid.Legendre(degree, domain=domain, scale=scale)
     except (ValueError, TypeError) as exc:
         raise misuse(exc) from exc
 

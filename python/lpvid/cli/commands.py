@@ -21,6 +21,7 @@ from lpvid.cli._common import (
     Parser,
     add_domain,
     add_outputs,
+    add_scale,
     basis_of,
     fixed_of,
     labels_of,
@@ -106,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="scheduling dependency: poly:D (powers 1..D) or legendre:D (default poly:2)",
     )
     add_domain(fit)
+    add_scale(fit, ("linear", "log"), "linear")
     fit.add_argument(
         "--gamma",
         nargs="+",
@@ -255,7 +257,7 @@ def _fit(args: argparse.Namespace) -> int:
             "--tolerance: applies to the choice by validation error; give --validation too"
         )
     data, validation = load_data(args)
-    basis = basis_of(args.basis, args.domain, data, validation)
+    basis = basis_of(args.basis, args.domain, data, validation, args.scale)
     if args.suggest is not None:
         suggest_count(args.suggest, basis, data)
     say(f"data: {data}")

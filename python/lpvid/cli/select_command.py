@@ -15,6 +15,7 @@ from lpvid.cli._common import (
     Misuse,
     add_domain,
     add_outputs,
+    add_scale,
     basis_of,
     fixed_of,
     labels_of,
@@ -78,6 +79,7 @@ def add_parser(sub: Any) -> None:
         help="kind of basis: powers (poly, default) or Legendre polynomials",
     )
     add_domain(sel)
+    add_scale(sel, ("auto", "linear", "log"), "auto")
     sel.add_argument("--gamma", nargs="+", type=float, metavar="G", help="as in lpvid fit")
     sel.add_argument(
         "--fix", action="append", choices=("A", "B", "C", "D"), default=[], help="as in lpvid fit"
@@ -127,7 +129,8 @@ def _bases(args: argparse.Namespace, data: Any, validation: Any) -> list[lpvid.B
                 f"--degrees: degree {d} has {n_functions} basis functions; they need at least "
                 f"{n_functions + 1} scheduling points, the data have {data.n_points}"
             )
-        out.append(basis_of(f"{args.basis}:{d}", args.domain, data, validation))
+        scale = "linear" if args.scale == "auto" else args.scale  # auto: select adds the twins
+        out.append(basis_of(f"{args.basis}:{d}", args.domain, data, validation, scale))
     return out
 
 
@@ -172,6 +175,7 @@ def run(args: argparse.Namespace) -> int:
                 executor=executor,
                 tolerance=args.tolerance,
                 progress=say,
+                log_scale="auto" if args.scale == "auto" else False,
             )
         except (ValueError, TypeError) as exc:
             raise misuse(exc, SELECT_OPTIONS) from exc

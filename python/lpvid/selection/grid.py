@@ -37,6 +37,7 @@ from lpvid.pipeline.problem import Problem, check_validation
 from lpvid.pipeline.result import IdentifyResult
 from lpvid.pipeline.run import identify, refuse_beside
 from lpvid.selection.result import GridRow, SelectResult, basis_label, choose_pair, free_in_use
+from lpvid.selection.scales import log_grid
 
 __all__ = ["held_out_points", "select"]
 
@@ -307,6 +308,7 @@ def select(
     executor: Executor | None = None,
     tolerance: float = 0.1,
     progress: Progress | None = None,
+    log_scale: Any = "auto",
 ) -> SelectResult:
     """Choose the model order and the basis: :func:`lpvid.identify` for every pair, then a choice.
 
@@ -326,6 +328,12 @@ def select(
       costs one more identify run per pair and point;
     - else the smallest order, then the fewest basis functions, whose V_NLS
       reaches the noise floor (``V_NLS <= M + 2 sqrt(M)``).
+
+    A scheduling parameter whose values are above zero and span more than
+    a decade is tried on the log scale too (``log_scale``): every
+    polynomial basis gets a twin on that scale, judged with the others;
+    ``result.scales`` (the table's last line) says what was tried, why, and
+    which scale the chosen pair is on.
 
     A pair that fails (an order beyond what the data determine, a singular
     model, no start) is recorded in the grid with its error and the others
@@ -385,6 +393,10 @@ def select(
     progress : callable, optional
         Called with a short message as each run ends (in the calling
         thread; the same messages go to the ``lpvid`` logger at INFO).
+    log_scale : {"auto", True, False}
+        ``"auto"``: the rule above (:mod:`lpvid.selection.scales`);
+        ``True``: the log scale tried for every parameter above zero;
+        ``False``: the bases as given.
 
     Returns
     -------
@@ -430,6 +442,7 @@ def select(
         path = PathSettings(gammas=gs, tolerance=tolerance)
         shared = _Shared(data, validation, None, IdentifySettings(path=path))
     tol = shared.settings.path.tolerance
+    bs, why = log_grid(bs, data, validation, log_scale)
     executor = check_executor(executor)
     if progress is not None and not callable(progress):
         raise TypeError(f"progress: expected a callable, got {type(progress).__name__}")
@@ -472,6 +485,7 @@ def select(
         hints=hints,
         interrupted=interrupted,
         timings={"total_s": time.perf_counter() - t0},
+        scales=why,
     )
     row = result.row
     for category, message in row.warnings:

@@ -13,18 +13,31 @@ from lpvid.initial.orders import OrderHints
 from lpvid.model.layout import MATRICES, fixed_mask, free_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.result import IdentifyResult
+from lpvid.selection.scales import scale_label
 
-__all__ = ["GridRow", "SelectResult", "basis_label", "choose_pair", "free_in_use"]
+__all__ = [
+    "GridRow",
+    "SelectResult",
+    "basis_label",
+    "choose_pair",
+    "free_in_use",
+    "scale_choice",
+]
 
 #: The rules of the choice, by what judges the pairs.
 RULES = ("validation", "held-out", "noise floor")
 
 
 def basis_label(basis: Basis) -> str:
-    """A short name of a basis for tables: ``poly:3``, ``legendre:2``, ``custom(f1, f2)``."""
+    """A short name of a basis for tables: ``poly:3``, ``poly:3 log``, ``custom(f1, f2)``.
+
+    A basis with a parameter on the log scale says so: ``poly:2 log``, or
+    one scale per parameter, ``poly:2 log/linear``.
+    """
     kind = getattr(basis, "kind", "")
     if kind in ("polynomial", "legendre"):
-        return f"{'poly' if kind == 'polynomial' else kind}:{basis.degree}"  # type: ignore[attr-defined]
+        label = f"{'poly' if kind == 'polynomial' else kind}:{basis.degree}"  # type: ignore[attr-defined]
+        return label if "log" not in basis.scales else f"{label} {scale_label(basis)}"
     return f"{kind or type(basis).__name__}({', '.join(basis.names)})"
 
 
@@ -159,6 +172,37 @@ def choose_pair(rows: list[GridRow], rule: str, tolerance: float) -> tuple[int, 
     )
 
 
+def scale_choice(rows: list[GridRow], chosen: int, rule: str, tolerance: float) -> str:
+    """Which scale the chosen pair is on, against the choice among the other scale's pairs.
+
+    The other choice is :func:`choose_pair` over the pairs on the other
+    scale(s) alone: what ``select(..., log_scale=False)`` returns when the
+    chosen pair is on the log scale. Empty when the grid holds one scale.
+    """
+    mine = scale_label(rows[chosen].basis)
+    others = [r for r in rows if scale_label(r.basis) != mine]
+    try:
+        other = others[choose_pair(others, rule, tolerance)[0]]
+    except ValueError:  # no other scale, or none of its pairs done
+        return ""
+    what = {"validation": "validation", "held-out": "held-out"}.get(rule, "identification")
+
+    def numbers(r: GridRow) -> str:
+        v, m = (
+            (r.validation_vnls, r.validation_floor)
+            if rule in RULES[:2]
+            else (r.vnls, r.noise_floor)
+        )
+        ratio = "-" if v is None or not m else f"{float(v) / float(m):.4g}"
+        return f"{r.n_free} free parameters in use, {what} V/floor {ratio}"
+
+    return (
+        f"chosen on the {mine} scale: {rows[chosen].label} ({numbers(rows[chosen])}); "
+        f"among the pairs on the {scale_label(other.basis)} scale alone the rule chooses "
+        f"{other.label} ({numbers(other)})"
+    )
+
+
 def _number(x: float | None, width: int, fmt: str = ".5g") -> str:
     return f"{'-':>{width}}" if x is None else f"{x:{width}{fmt}}"
 
@@ -188,6 +232,10 @@ class SelectResult:
         the choice is among those done.
     timings : dict
         ``"total_s"``: the wall time of the run.
+    scales : str
+        Which scale the grid tried for each scheduling parameter and why
+        (:func:`lpvid.selection.scales.log_axes`); :attr:`scale_note` adds
+        which scale the chosen pair is on.
     """
 
     grid: list[GridRow]
@@ -198,6 +246,17 @@ class SelectResult:
     hints: OrderHints
     interrupted: bool = False
     timings: dict[str, float] = field(default_factory=dict)
+    scales: str = ""
+
+    @property
+    def scale_note(self) -> str:
+        """What the grid tried on which scale and why, and the scale of the chosen pair.
+
+        The table's and the summary's last line: :attr:`scales`, then (when
+        the grid holds more than one scale) :func:`scale_choice`.
+        """
+        choice = scale_choice(self.grid, self.chosen, self.rule, self.tolerance)
+        return "; ".join(x for x in (self.scales, choice) if x)
 
     @property
     def row(self) -> GridRow:
@@ -229,14 +288,14 @@ class SelectResult:
     def table(self) -> str:
         """The grid, one line per pair, the chosen one marked."""
         val = {"validation": "val V/floor", "held-out": "held-out V/fl"}.get(self.rule)
-        head = f"{'':2}{'order':>5} {'basis':<12} {'V_NLS':>11} {'V/floor':>9}"
+        head = f"{'':2}{'order':>5} {'basis':<14} {'V_NLS':>11} {'V/floor':>9}"
         head += f" {val:>13}" if val else ""
         head += f" {'groups':>6} {'free':>5} {'seconds':>8}"
         lines = [head]
         for k, r in enumerate(self.grid):
             mark = "->" if k == self.chosen else ""
             ratio = None if r.vnls is None or not r.noise_floor else r.vnls / r.noise_floor
-            line = f"{mark:2}{r.order:5d} {basis_label(r.basis):<12} {_number(r.vnls, 11)}"
+            line = f"{mark:2}{r.order:5d} {basis_label(r.basis):<14} {_number(r.vnls, 11)}"
             line += f" {_number(ratio, 9, '.4g')}"
             if val:
                 vr = (
@@ -253,6 +312,8 @@ class SelectResult:
             elif r.warnings:
                 line += f"  ({len(r.warnings)} warning(s))"
             lines.append(line)
+        if self.scale_note:
+            lines.append(f"scale: {self.scale_note}")
         return "\n".join(lines)
 
     def summary(self) -> str:
@@ -281,6 +342,8 @@ class SelectResult:
             )
         if failed:
             lines.append(f"{failed} pair(s) failed: see the table")
+        if self.scale_note:
+            lines.append(f"scale: {self.scale_note}")
         lines.append(
             f"time: {self.timings.get('total_s', float('nan')):.2f} s for {len(self.grid)} pairs"
         )
