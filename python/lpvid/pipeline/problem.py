@@ -35,7 +35,7 @@ from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.capacity import check_order, zero_model
 
-__all__ = ["Problem", "check_validation", "problem_of"]
+__all__ = ["Problem", "check_scale", "check_validation", "problem_of"]
 
 
 def check_validation(data: FrfData, validation: Any) -> FrfData | None:
@@ -68,17 +68,33 @@ def _check_basis(basis: Basis, data: FrfData) -> None:
         )
 
 
-def _check_scale(basis: Basis, data: FrfData, validation: FrfData | None) -> None:
-    """A basis on the log scale against scheduling values at or below zero in the data."""
+def check_scale(
+    basis: Basis, data: FrfData, validation: FrfData | None, who: str = "basis:"
+) -> None:
+    """Refuse a basis on the log scale where the data's scheduling values reach zero or below.
+
+    Parameters
+    ----------
+    basis : Basis
+    data, validation : FrfData
+        The data (validation may be None).
+    who : str
+        What the message starts with (the argument that holds the basis).
+
+    Raises
+    ------
+    ValueError
+        Naming the parameter, the data and their smallest value.
+    """
     for what, d in (("data", data), ("validation data", validation)):
         if d is None:
             continue
         p = d.p.reshape(d.n_points, -1)
         for k, scale in enumerate(basis.scales):
             if scale == "log" and not np.all(p[:, k] > 0):
-                which = "" if basis.n_params == 1 else f" of parameter {k + 1}"
+                which = "" if basis.n_params == 1 else f" parameter {k + 1}"
                 raise ValueError(
-                    f"basis: takes the scheduling{which} on the log scale, which needs values "
+                    f"{who} takes the scheduling{which} on the log scale, which needs values "
                     f"above zero; the {what} reach {float(np.min(p[:, k])):g} (take it on "
                     "scale='linear')"
                 )
@@ -174,7 +190,7 @@ class Problem:
                 f"settings: expected an IdentifySettings, got {type(self.settings).__name__}"
             )
         _check_basis(basis, data)
-        _check_scale(basis, data, validation)
+        check_scale(basis, data, validation)
         check_order(n, basis, data, self.fixed)
         check_local_order(n, data)
         for name, value in (

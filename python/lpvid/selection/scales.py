@@ -21,6 +21,7 @@ import numpy as np
 from lpvid.data.basis import Basis, Legendre, Polynomial
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import decades
+from lpvid.pipeline.problem import check_scale
 
 __all__ = [
     "LOG_DECADES",
@@ -132,17 +133,7 @@ def scale_label(basis: Basis) -> str:
 def check_log_bases(bases: list[Basis], data: FrfData, validation: FrfData | None) -> None:
     """Refuse a basis on the log scale for scheduling values at or below zero (naming ``bases``)."""
     for b in bases:
-        for what, d in (("data", data), ("validation data", validation)):
-            if d is None:
-                continue
-            p = d.p.reshape(d.n_points, -1)
-            for k, scale in enumerate(b.scales):
-                if scale == "log" and not np.all(p[:, k] > 0):
-                    which = "" if b.n_params == 1 else f" parameter {k + 1}"
-                    raise ValueError(
-                        f"bases: {b!r} takes the scheduling{which} on the log scale, which "
-                        f"needs values above zero; the {what} reach {float(np.min(p[:, k])):g}"
-                    )
+        check_scale(b, data, validation, who=f"bases: {b!r}")
 
 
 def log_grid(
