@@ -25,10 +25,12 @@ one scale returns, at a third of the cost.
   quadratic in p itself; points spread evenly in p. The log scale is wrong
   here: the rule must not cost accuracy.
 
-Every seed draws other noise; the last lines sum up over the seeds.
+Every seed draws other noise; with ``--random`` it also draws the points:
+the ends of the range and 8 between them uniformly (in ``log10(k)`` for
+the rod, in p for the modes). The last lines sum up over the seeds.
 
 Run: python benches/bench_logscale.py [--truth rod poly] [--states 101]
-[--orders 4 6 8 10] [--degrees 2 3] [--seeds 0 1 2 3 4] [--table]
+[--orders 4 6 8 10] [--degrees 2 3] [--seeds 0 1 2 3 4] [--random] [--table]
 (``--orders 4 5 6 7 8 9 10`` is the grid of issue 61, 2.5 times as long.)
 """
 
@@ -40,6 +42,7 @@ import warnings
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 import lpvid
 import lpvid.testing
@@ -59,6 +62,7 @@ def rod(states: int) -> dict[str, Any]:
         "p_val": 10.0 ** np.array([-0.6, 0.3]),
         "p_test": 10.0 ** np.array([-0.9, -0.45, 0.0, 0.45, 0.9]),
         "name": f"diffusion rod, {true.n_states} states, k in [0.1, 10] (log scale right)",
+        "log": True,
     }
 
 
@@ -77,13 +81,27 @@ def poly(states: int) -> dict[str, Any]:
         "p_val": np.array([6.0, 21.0]),
         "p_test": np.array([2.5, 9.0, 15.5, 19.0, 28.0]),
         "name": "three modes quadratic in p over [1, 30] (log scale wrong)",
+        "log": False,
     }
 
 
-def run(case: dict[str, Any], orders: list[int], degrees: list[int], seed: int) -> dict:
+def drawn(case: dict[str, Any], rng: np.random.Generator, log: bool) -> NDArray[np.float64]:
+    """The ends of the case's points and 8 drawn between them (uniformly in log10 if ``log``)."""
+    lo, hi = case["p"][0], case["p"][-1]
+    if log:
+        inner = 10.0 ** rng.uniform(np.log10(lo), np.log10(hi), 8)
+    else:
+        inner = rng.uniform(lo, hi, 8)
+    return np.concatenate([[lo], np.sort(inner), [hi]])
+
+
+def run(
+    case: dict[str, Any], orders: list[int], degrees: list[int], seed: int, random: bool = False
+) -> dict:
     rng = np.random.default_rng(seed)
     true, f = case["true"], case["freqs"]
-    data = lpvid.testing.noisy_data(true, case["p"], f, rng, NOISE)
+    p = drawn(case, rng, case["log"]) if random else case["p"]
+    data = lpvid.testing.noisy_data(true, p, f, rng, NOISE)
     val = lpvid.testing.noisy_data(true, case["p_val"], f, rng, NOISE)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -110,12 +128,13 @@ def main() -> None:
     parser.add_argument("--orders", type=int, nargs="+", default=[4, 6, 8, 10])
     parser.add_argument("--degrees", type=int, nargs="+", default=[2, 3])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    parser.add_argument("--random", action="store_true", help="draw the points (module notes)")
     parser.add_argument("--table", action="store_true", help="print select's table too")
     args = parser.parse_args()
     ratios: dict[str, list[float]] = {}
     for name, seed in ((n, s) for n in args.truth for s in args.seeds):
         case = {"rod": rod, "poly": poly}[name](args.states)
-        out = run(case, args.orders, args.degrees, seed)
+        out = run(case, args.orders, args.degrees, seed, args.random)
         sel = out["sel"]
         print(f"{case['name']}: orders {args.orders}, degrees {args.degrees}, seed {seed}")
         print(f"  select: {len(sel.grid)} pairs in {out['seconds']:.1f} s ({sel.rule} rule)")
