@@ -9,6 +9,14 @@
 //! damped pole; 0 for a pole at the origin). A frozen model is stable when
 //! its margin is positive.
 //!
+//! Fits that keep stability may give their check points a floor (continuous
+//! time): a pole is then measured against `max(|lambda|, floor)`, so that a
+//! real pole's margin falls to zero as it nears the origin instead of
+//! staying 1 until it crosses (a damping ratio does not see how near zero a
+//! real pole is): a fit cannot then bring a real pole to within
+//! `tol * floor` of the origin at the check points, and push it across
+//! between them unseen.
+//!
 //! The range is given as the basis values at an ordered list of check
 //! points (for one scheduling parameter: a fine uniform grid). [`FrozenRange::worst`]
 //! evaluates every `stride`-th point, then every point between the coarse
@@ -33,6 +41,13 @@ const REFINED_MINIMA: usize = 4;
 /// The stability margin of a frozen model from its poles (see the module
 /// documentation); `-inf` when a pole is not finite.
 pub fn margin(poles: &[C64], discrete: bool) -> f64 {
+    floored_margin(poles, discrete, 0.0)
+}
+
+/// [`margin`] with every continuous-time pole measured against
+/// `max(|lambda|, floor)` (the module documentation); the same as
+/// [`margin`] for `floor = 0` and in discrete time.
+pub fn floored_margin(poles: &[C64], discrete: bool, floor: f64) -> f64 {
     if poles
         .iter()
         .any(|p| !(p.re.is_finite() && p.im.is_finite()))
@@ -43,7 +58,7 @@ pub fn margin(poles: &[C64], discrete: bool) -> f64 {
         1.0 - poles.iter().fold(0.0f64, |a, p| a.max(p.norm()))
     } else {
         poles.iter().fold(f64::INFINITY, |a, p| {
-            let size = p.norm();
+            let size = p.norm().max(floor);
             a.min(if size > 0.0 { -p.re / size } else { 0.0 })
         })
     }
@@ -87,6 +102,8 @@ pub struct FrozenRange {
     psi: Vec<f64>,
     stride: usize,
     discrete: bool,
+    /// Continuous time: poles measured against `max(|lambda|, floor)`.
+    floor: f64,
 }
 
 impl FrozenRange {
@@ -112,7 +129,21 @@ impl FrozenRange {
             psi,
             stride,
             discrete,
+            floor: 0.0,
         })
+    }
+
+    /// The range with its margins floored at `floor` (finite, >= 0): see
+    /// [`floored_margin`].
+    pub fn with_floor(mut self, floor: f64) -> Result<Self> {
+        if !(floor.is_finite() && floor >= 0.0) {
+            return Err(invalid(
+                "floor",
+                format!("expected a finite number >= 0, got {floor}"),
+            ));
+        }
+        self.floor = floor;
+        Ok(self)
     }
 
     /// Number of check points.
@@ -165,7 +196,7 @@ impl FrozenRange {
 
     fn margin_at(&self, shape: &Shape, theta: &[f64], k: usize) -> Result<f64> {
         let poles = eigenvalues(&self.a_at(shape, theta, k), shape.n)?;
-        Ok(margin(&poles, self.discrete))
+        Ok(floored_margin(&poles, self.discrete, self.floor))
     }
 
     /// The margin at every check point.
@@ -335,6 +366,21 @@ mod tests {
         assert!((margin(&s, false) - 0.5f64.sqrt()).abs() < 1e-15);
         assert_eq!(margin(&[C64::new(0.0, 0.0)], false), 0.0);
         assert!(margin(&[C64::new(0.1, 2.0)], false) < 0.0);
+    }
+
+    #[test]
+    fn a_floor_makes_a_real_pole_near_the_origin_count_as_near_the_boundary() {
+        let slow = [C64::new(-1e-9, 0.0), C64::new(-3.0, 4.0)];
+        assert_eq!(margin(&slow, false), 0.6);
+        assert!((floored_margin(&slow, false, 1.0) - 1e-9).abs() < 1e-24);
+        // poles larger than the floor, and discrete time, as without it
+        assert_eq!(floored_margin(&slow[1..], false, 1.0), 0.6);
+        let z = [C64::new(0.5, 0.5)];
+        assert_eq!(floored_margin(&z, true, 1.0), margin(&z, true));
+        assert!(floored_margin(&[C64::new(1e-12, 0.0)], false, 1.0) < 0.0);
+        let range = FrozenRange::new(0, &[], 1, 1, false).expect("valid range");
+        assert!(range.clone().with_floor(f64::NAN).is_err());
+        assert!(range.with_floor(-1.0).is_err());
     }
 
     #[test]

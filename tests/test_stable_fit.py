@@ -229,6 +229,73 @@ def test_stable_fits_recheck_the_continuum_between_the_check_points():
     assert out.interrupted
 
 
+def _window_at(p0: float, start):
+    """The model of :func:`_ct_window` with its window of instability at ``p0``."""
+    s0 = 2 * p0 - 1
+    return lpvid.LpvModel([[[1e-8 - s0**2]], [[2 * s0]], [[-1.0]]], start.B, start.C, basis=BASIS)
+
+
+def _adversary(start, near: float, reach: float):
+    """A stand-in fit that puts the window wherever the check points it is given miss it.
+
+    Of the places within ``reach`` of ``near`` (a fine grid), the first where the check
+    points see no margin below STABLE_TOL; the start when there is none (as the core would
+    refuse every step). What a fit whose optimum sits in the window does (seen on
+    lpvid.testing.synthetic_parametric at four points: the window moved 1e-5 a round).
+    """
+    places = near + np.linspace(-reach, reach, 4001)
+
+    def fit(points):
+        for q in places:
+            model = _window_at(q, start)
+            if points.worst(model.theta)[1] >= STABLE_TOL:
+                return SimpleNamespace(theta=model.theta, interrupted=False)
+        return SimpleNamespace(theta=start.theta, interrupted=False)
+
+    return fit
+
+
+def test_a_window_that_moves_beside_each_point_added_is_closed_by_adding_it_whole():
+    from lpvid.stable.enforce import CHECK_POINTS, run_stable
+
+    start, _, p0 = _ct_window()
+    h = 1.0 / (CHECK_POINTS - 1)
+    # the window moves within one check-point spacing of where it was first found
+    raw = run_stable(start, None, _adversary(start, p0, h))
+    assert lpvid.stability(start.with_theta(raw.theta), (0.0, 1.0)).stable
+    np.testing.assert_array_equal(raw.theta, start.theta)
+
+
+def test_a_floor_lets_the_check_points_see_a_real_pole_near_the_origin():
+    from lpvid.stable.enforce import run_stable
+
+    start, bad, p0 = _ct_window()
+    # the check points next to the window: a real pole 1e-7 or less from the origin,
+    # damping ratio 1 without a floor; against a floor of 1 rad/s, a margin below STABLE_TOL
+    grid = lpvid.stable.enforce.check_points(bad, [(0.0, 1.0)], [])
+    floored = lpvid.stable.enforce.check_points(bad, [(0.0, 1.0)], [], floor=1.0)
+    assert grid.worst(bad.theta)[1] == 1.0
+    assert 0 < floored.worst(bad.theta)[1] < STABLE_TOL
+    # anywhere in the range: with the floor no place between the check points hides it
+    raw = run_stable(start, None, _adversary(start, 0.5, 0.5), floor=1.0)
+    np.testing.assert_array_equal(raw.theta, start.theta)
+    # the start itself: a real pole at -1 against a floor of 1, margin 1
+    assert lpvid.stable.enforce.check_points(start, [(0.0, 1.0)], [], 1.0).worst(start.theta)[
+        1
+    ] == pytest.approx(1.0)
+
+
+def test_the_floor_is_the_lowest_measured_angular_frequency():
+    from lpvid.stable.enforce import pole_floor
+
+    start, _, _ = _ct_window()
+    data = lpvid.FrfData([0.0, 0.5, 1.0], [0.0, 0.25, 4.0], np.ones((3, 3, 1, 1), complex))
+    assert pole_floor(start, data) == 2 * np.pi * 0.25
+    assert pole_floor(start, None) == 0.0
+    discrete = lpvid.LpvModel(start.A, start.B, start.C, basis=BASIS, Ts=0.1)
+    assert pole_floor(discrete, data) == 0.0
+
+
 @pytest.mark.parametrize("how", ["stable", "pinned"])
 def test_ctrl_c_stops_a_stable_or_pinned_sweep(peaked, how):
     # Ctrl-C during the first fit (a callback that raises it once): the sweep returns that

@@ -40,7 +40,9 @@ fn stability_margin_py(poles: PyReadonlyArray1<'_, Complex64>, discrete: bool) -
 /// Check points of a scheduling range for fits that keep stability: the
 /// model's view at the points (its shape and basis values; the margins
 /// are taken at the `theta` each call passes); every `stride`-th point is
-/// checked first; a margin below `tol` is unstable.
+/// checked first; a margin below `tol` is unstable. `floor` (continuous
+/// time) measures every pole against `max(|lambda|, floor)`
+/// (`stable::floored_margin`).
 #[pyclass(name = "FrozenRange", module = "lpvid._core", frozen)]
 pub struct PyFrozenRange {
     pub(crate) inner: FrozenRange,
@@ -51,12 +53,14 @@ pub struct PyFrozenRange {
 #[pymethods]
 impl PyFrozenRange {
     #[new]
+    #[pyo3(signature = (view, stride, discrete, tol, floor = 0.0))]
     fn new(
         py: Python<'_>,
         view: &Bound<'_, PyModelView>,
         stride: usize,
         discrete: bool,
         tol: f64,
+        floor: f64,
     ) -> PyResult<Self> {
         if !(tol.is_finite() && tol >= 0.0) {
             return Err(invalid("tol", format!("expected a finite number >= 0, got {tol}")).into());
@@ -64,7 +68,9 @@ impl PyFrozenRange {
         let view = view.get();
         let (shape, n_points) = (*view.shape(), view.n_points());
         let inner = view.with_basis(py, |basis| {
-            guarded(|| FrozenRange::new(shape.nb, basis, n_points, stride, discrete))
+            guarded(|| {
+                FrozenRange::new(shape.nb, basis, n_points, stride, discrete)?.with_floor(floor)
+            })
         })?;
         Ok(PyFrozenRange { inner, tol, shape })
     }

@@ -27,7 +27,7 @@ from lpvid.fit.timecost import combined_problem
 from lpvid.model.layout import free_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.model.similarity import pointwise_similarity_directions, similarity_directions
-from lpvid.stable.enforce import run_stable
+from lpvid.stable.enforce import pole_floor, run_stable
 
 __all__ = ["fit_nls", "fit_l21", "l21_path", "lm_settings", "raise_if_interrupted"]
 
@@ -227,6 +227,7 @@ def fit_nls(
         stable,
         _p_range_and_sup(model, data, p_range)[0] if stable else None,
         lambda rng: _core.fit_nls(problem, model.theta, free, settings, monitor, rng),
+        data,
     )
     result = FitResult._from_core(raw, model, floor)
     if warn:
@@ -248,12 +249,12 @@ def _pinned(
 
 
 def _stable_run(
-    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], FitOutcome]
+    model: LpvModel, stable: bool, p_range: Any, run: Callable[[Any], FitOutcome], data: Any
 ) -> FitOutcome:
-    """``run(None)``, or with ``stable`` a run that keeps the frozen models stable."""
+    """``run(None)``, or with ``stable`` one that keeps the frozen models stable (pole_floor)."""
     if not flag(stable, "stable"):
         return run(None)
-    return run_stable(model, p_range, run)
+    return run_stable(model, p_range, run, pole_floor(model, data))
 
 
 def _p_range_and_sup(model: LpvModel, data: FrfData, p_range: Any) -> tuple[Any, np.ndarray]:
@@ -401,6 +402,7 @@ def fit_l21(
         lambda check: _core.fit_l21(
             problem, model.theta, sup, free, s.to_core(g), monitor, check, pin
         ),
+        data,
     )
     result = _l21_result(raw, model, floor, g, rng, s.threshold)
     if warn:
@@ -478,7 +480,8 @@ def l21_path(
         return _core.fit_l21(problem, m.theta, sup, free, s.to_core(g), monitor, check, flat)
 
     if flag(stable, "stable"):
-        raws = _sweep(model, gs, lambda m, g: run_stable(m, rng, lambda c: one(m, g, c)))
+        fl = pole_floor(model, data)
+        raws = _sweep(model, gs, lambda m, g: run_stable(m, rng, lambda c: one(m, g, c), fl))
     elif pin:
         raws = _sweep(model, gs, one)
     else:

@@ -16,7 +16,21 @@ is added to them and the fit runs again from the same start (at most
 :data:`MAX_ROUNDS` times), every check point then evaluated at every step:
 a point added where the margin dips between two coarse samples that are
 not local minima would otherwise be skipped, and the fit would return to
-the same unstable place.
+the same unstable place. With one parameter the whole window of
+instability is added, densely (:func:`window_points`).
+
+**Real poles near the origin.** In continuous time the margin is a
+damping ratio, which is 1 for a real pole however near the origin it is:
+at the check points a fit could bring a real pole to ``-1e-15`` and push
+it across zero in a window between them, unseen, round after round (seen
+on ``lpvid.testing.synthetic_parametric`` at four points: the window moved
+by 1e-5 each round). The fits' check points therefore measure every pole
+against ``max(|lambda|, floor)`` with ``floor`` the lowest measured angular
+frequency (:func:`pole_floor`): a real pole must stay ``STABLE_TOL *
+floor`` left of the origin, a pole a million times slower than the data
+reach, so that the margin falls continuously as a pole nears zero and a
+window between the check points is rare and wide enough to be added
+whole. :func:`lpvid.stability` and the margins it reports are unchanged.
 """
 
 from __future__ import annotations
@@ -35,7 +49,14 @@ from lpvid.model.lpv import LpvModel
 from lpvid.stable.ranges import as_convention, box_grid, check_range
 from lpvid.stable.scan import format_p, stability
 
-__all__ = ["STABLE_TOL", "check_points", "run_stable", "stabilised"]
+__all__ = [
+    "STABLE_TOL",
+    "check_points",
+    "pole_floor",
+    "run_stable",
+    "stabilised",
+    "window_points",
+]
 
 #: Smallest stability margin a fit with ``stable=True`` accepts at its check
 #: points (the margins of :func:`lpvid.model.frozen.stability_margin`).
@@ -48,10 +69,32 @@ STRIDE = 16
 BOX_POINTS = 1600
 #: Fits run at most this many times (each adds the unstable place found).
 MAX_ROUNDS = 3
+#: Check points added over a window of instability found between the check
+#: points (one parameter), from the check point before it to the one after.
+WINDOW_POINTS = 129
 
 
-def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[Any]) -> Any:
-    """The core's check points for ``model`` over the range, with ``extra`` scheduling values."""
+def pole_floor(model: LpvModel, data: Any) -> float:
+    """The floor of the fits' check-point margins: the lowest measured angular frequency.
+
+    0 (no floor) in discrete time and without measured frequencies above
+    zero (module notes).
+    """
+    if model.Ts is not None or data is None:
+        return 0.0
+    f = np.asarray(data.freqs_hz, dtype=float)
+    f = f[f > 0]
+    return float(2.0 * np.pi * f.min()) if f.size else 0.0
+
+
+def check_points(
+    model: LpvModel, pairs: list[tuple[float, float]], extra: list[Any], floor: float = 0.0
+) -> Any:
+    """The core's check points for ``model`` over the range, with ``extra`` scheduling values.
+
+    Their margins measure every pole against ``max(|lambda|, floor)``
+    (continuous time; module notes).
+    """
     if len(pairs) == 1:
         lo, hi = pairs[0]
         p = axis_values(lo, hi, CHECK_POINTS, model.basis.scales[0])
@@ -65,7 +108,30 @@ def check_points(model: LpvModel, pairs: list[tuple[float, float]], extra: list[
         if extra:
             pts = np.concatenate([pts, np.asarray(extra, dtype=float).reshape(-1, len(pairs))])
     view = model_view(model, model.basis_values(pts))
-    return _core.FrozenRange(view, stride, model.Ts is not None, STABLE_TOL)
+    return _core.FrozenRange(view, stride, model.Ts is not None, STABLE_TOL, floor)
+
+
+def window_points(rep: Any, pairs: list[tuple[float, float]], scale: str) -> list[Any]:
+    """The unstable place a check found and, with one parameter, its window densely sampled.
+
+    The window is the pair of the report's crossings around ``rep.worst_p``:
+    :data:`WINDOW_POINTS` points spread over it and one check-point spacing
+    on either side (evenly on the basis's scale), and ``worst_p``. With
+    several parameters, ``worst_p`` alone.
+    """
+    if len(pairs) != 1 or rep.crossings.size == 0:
+        return [rep.worst_p]
+    worst = float(np.ravel(rep.worst_p)[0])
+    lo, hi = pairs[0]
+    log = scale == "log"
+    u = np.array([lo, hi, worst, *rep.crossings], dtype=float)
+    u = np.log10(u) if log else u
+    (ulo, uhi, uw), cross = u[:3], u[3:]
+    a = float(cross[cross <= uw].max(initial=uw))
+    b = float(cross[cross >= uw].min(initial=uw))
+    step = (uhi - ulo) / (CHECK_POINTS - 1)
+    pts = np.linspace(max(ulo, a - step), min(uhi, b + step), WINDOW_POINTS)
+    return [*np.clip(10.0**pts if log else pts, lo, hi), worst]
 
 
 def stabilised(model: LpvModel, p_range: Any = None, margin: float = 1e-3) -> LpvModel:
@@ -118,8 +184,11 @@ def run_stable(
     model: LpvModel,
     p_range: Any,
     run: Callable[[Any], FitOutcome],
+    floor: float = 0.0,
 ) -> FitOutcome:
     """Run a fit that keeps stability: ``run(check_points)`` returns the core's outcome.
+
+    ``floor``: that of the check points' margins (:func:`pole_floor`).
 
     Raises
     ------
@@ -132,7 +201,7 @@ def run_stable(
     """
     pairs = check_range(model, p_range)
     start = stability(model, as_convention(pairs), quadratic=False)
-    points = check_points(model, pairs, [])
+    points = check_points(model, pairs, [], floor)
     _, at_points = points.worst(model.theta)
     if not start.stable or not at_points >= STABLE_TOL:
         what = "unstable" if not start.stable else "closer to the stability boundary than allowed"
@@ -144,14 +213,14 @@ def run_stable(
         )
     extra: list[Any] = []
     for _ in range(MAX_ROUNDS):
-        raw = run(points if not extra else check_points(model, pairs, extra))
+        raw = run(points if not extra else check_points(model, pairs, extra, floor))
         if raw.interrupted:
             return raw
         fitted = model.with_theta(raw.theta)
         rep = stability(fitted, start.p_range, quadratic=False)
         if rep.stable:
             return raw
-        extra.append(rep.worst_p)
+        extra.extend(window_points(rep, pairs, model.basis.scales[0]))
     raise RuntimeError(
         f"stable=True: after {MAX_ROUNDS} rounds the fit still leaves the stable set between "
         f"the check points (at p = {format_p(extra[-1])}); this should not happen, please report it"
