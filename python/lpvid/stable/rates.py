@@ -134,6 +134,8 @@ def _rate_case(
         )
     pairs = check_range(model, p_range)
     nu = np.atleast_1d(np.asarray(rate, dtype=float))
+    if nu.shape == (1,):
+        nu = np.full(len(pairs), nu[0])
     if nu.shape != (len(pairs),) or not np.all(np.isfinite(nu)) or np.any(nu < 0):
         raise ValueError(
             f"rate: expected {len(pairs)} finite bound(s) >= 0 on |dp_k/dt|, got {rate!r}"
@@ -210,7 +212,8 @@ def rate_stability(
         A continuous-time model whose ``A(p)`` is polynomial (LTI,
         :class:`lpvid.Polynomial`, :class:`lpvid.Legendre`).
     rate : float or sequence of float
-        ``nu_k >= 0`` per parameter, in the parameter's units per model time unit.
+        ``nu_k >= 0`` per parameter (one number: the same for every
+        parameter), in the parameter's units per model time unit.
     p_range : (lo, hi) or sequence of (lo, hi), optional
         The box; default the model's.
     degree : int
