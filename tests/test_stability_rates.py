@@ -229,3 +229,75 @@ def test_program_size_formula():
     # four vertices: a block of 48 and two of 24; P(p) - I: m = 1, a block of 24, two of 8.
     assert size["blocks"] == [48, 24, 24] * 4 + [24, 8, 8]
     assert size["equations"] == 4 * 36 * 15 + 36 * 6
+
+
+def test_the_certificate_derivative_is_the_chain_rule(rot, rng):
+    """Rejects dP_at without the factor 2 / (hi - lo) (or on the wrong parameter)."""
+    cert = lpvid.max_rate(rot, rel_tol=0.5).certificate
+    for _ in range(5):
+        p = rng.uniform([0.0, -2.0], [4.0, 2.0])
+        for k in range(2):
+            h = np.eye(2)[k] * 1e-6
+            fd = (cert.P_at(p + h) - cert.P_at(p - h)) / 2e-6
+            np.testing.assert_allclose(
+                cert.dP_at(p)[k], fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max()
+            )
+        A = frozen_A(rot, p[None, :])[0]
+        v = cert.rate * np.array([1.0, -1.0])
+        assert np.linalg.eigvalsh(cert.inequality(A, p, v)).min() >= cert.mu * (1 - 1e-9)
+
+
+def _doctored_P(monkeypatch, n, edit):
+    """Clarabel's answer with the coefficients of P(t) (the first unknowns) edited."""
+    from test_lyapunov import _doctor
+
+    k = n * (n + 1) // 2
+
+    def change(x, status, args):
+        edit(x, k)
+        return x, status
+
+    _doctor(monkeypatch, change)
+
+
+def test_every_rate_vertex_is_paid_for(monkeypatch, conj, rng):
+    """Rejects a bound taken at one vertex of the rate box only: dP/dt shifted so that the
+    vertex v = -nu loses, the other vertex's identity kept exact by its Gram matrices (the
+    certificate need not certify: its bound must be a bound all the same)."""
+    from test_lyapunov import _doctor
+
+    from lpvid.stable import boxsos as box
+    from lpvid.stable.lyapunov import _svec
+
+    k = 3  # unknowns of one 2 x 2 coefficient P_b
+    rows = len(box.monomials(4, 1)) * 3  # equations of one vertex (m = 2, q = 2)
+
+    def edit(x, status, args):
+        _, _, Acon, _, cones, _ = args
+        Aeq = Acon[: cones[0].dim].toarray()
+        dx = np.zeros_like(x)
+        dx[k : 2 * k] = -0.05 * np.abs(x[:k]).max() * _svec(np.eye(2))
+        last = slice(rows, 2 * rows)  # the vertex v = +nu, last in the program
+        cols = [j for j in range(3 * k, x.size - 1) if np.any(Aeq[last, j])]
+        dq = np.linalg.lstsq(Aeq[last][:, cols], -Aeq[last] @ dx, rcond=None)[0]
+        dx[cols] = dq
+        assert np.allclose(Aeq[last] @ dx, 0.0, atol=1e-9 * np.abs(x).max())
+        return x + dx, status
+
+    _doctor(monkeypatch, edit)
+    # A fast rate: the rate term outweighs what the shift does through A(p).
+    _, cert, _ = lpvid.rate_stability(conj, 300.0)
+    assert cert.mu <= sampled_worst(conj, cert, rng, 1000) * (1 + 1e-9)
+
+
+def test_an_indefinite_P_is_not_a_certificate(monkeypatch, conj):
+    """Rejects a verdict without P(p) > 0 (its sum of squares dropped, or mu_P not asked)."""
+    from lpvid.stable.lyapunov import _svec
+
+    def edit(x, k):
+        x[:k] -= 3.0 * _svec(np.eye(2))
+
+    _doctored_P(monkeypatch, 2, edit)
+    ok, cert, _ = lpvid.rate_stability(conj, 0.5)
+    assert cert.mu > 0  # the derivative's inequality alone would still pass
+    assert ok is not True and cert.mu_p < 0
