@@ -301,3 +301,19 @@ def test_an_indefinite_P_is_not_a_certificate(monkeypatch, conj):
     ok, cert, _ = lpvid.rate_stability(conj, 0.5)
     assert cert.mu > 0  # the derivative's inequality alone would still pass
     assert ok is not True and cert.mu_p < 0
+
+
+def test_the_report_computes_small_programs_only(conj):
+    """``rate="small"`` (the report's choice): seconds, not minutes; the note says how to ask."""
+    rep = lpvid.stability(conj, rate="small")
+    assert rep.rate is not None and rep.rate[0] >= 1.0
+    big = rotating(pairs=[(0.0, 1.0)] * 2)
+    n = 10
+    X = np.zeros((3, n, n))
+    for i in range(0, n, 2):
+        X[:, i : i + 2, i : i + 2] = big.A
+    wide = lpvid.LpvModel(X, np.zeros((3, n, 1)), np.zeros((3, 1, n)), basis=big.basis)
+    rep = lpvid.stability(wide, rate="small", quadratic=False)
+    assert rep.rate is None and "lpvid.max_rate(model) computes it" in rep.rate_note
+    with pytest.raises(ValueError, match="rate:"):
+        lpvid.stability(conj, rate="yes")

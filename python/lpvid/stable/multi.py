@@ -17,6 +17,7 @@ The program and its check, its size and what a sum of squares may miss:
 from __future__ import annotations
 
 import itertools
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,7 +32,7 @@ from lpvid.stable.ranges import box_grid, polynomial_A
 #: Points of the grid whose program can prove that no common P exists (several parameters).
 GRID_FALSE = 64
 
-__all__ = ["GRID_FALSE", "box_quadratic", "polynomial_terms"]
+__all__ = ["GRID_FALSE", "box_quadratic", "model_quadratic", "polynomial_terms"]
 
 
 def polynomial_terms(
@@ -185,3 +186,25 @@ def box_quadratic(
             "exists at the grid's points"
         ),
     )
+
+
+def model_quadratic(
+    model: LpvModel, pairs: list[tuple[float, float]], coef: Any, discrete: bool
+) -> tuple[bool | None, LyapunovCertificate | None, str]:
+    """The quadratic certificate: exact for one parameter, a sum of squares for several."""
+    if len(pairs) == 1 and coef is not None:
+        return quadratic_stability(coef, discrete)
+    terms = None if len(pairs) == 1 else polynomial_terms(model, pairs)
+    if terms is None:
+        return (
+            None,
+            None,
+            (
+                "quadratic stability not decided: the LMI certificate covers polynomial "
+                "dependence (Polynomial, Legendre bases)"
+            ),
+        )
+    try:
+        return box_quadratic(terms, discrete)
+    except MemoryError as exc:
+        return None, None, f"quadratic stability not decided: {exc}"

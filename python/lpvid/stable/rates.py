@@ -39,12 +39,22 @@ from numpy.typing import NDArray
 
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
-from lpvid.stable.boxsos import Exp, solve_box
+from lpvid.stable.boxsos import Exp, program_size, solve_box
 from lpvid.stable.lyapunov import KAPPA
 from lpvid.stable.multi import _at, _scaled, polynomial_terms
-from lpvid.stable.ranges import box_grid, check_range
+from lpvid.stable.ranges import as_convention, box_grid, check_range
 
-__all__ = ["RateBound", "RateCertificate", "max_rate", "rate_stability"]
+__all__ = [
+    "SMALL_RATE_BYTES",
+    "RateBound",
+    "RateCertificate",
+    "max_rate",
+    "rate_stability",
+    "report_rate",
+]
+
+#: ``stability(..., rate="small")``: the largest memory estimate of one program computed.
+SMALL_RATE_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -387,3 +397,54 @@ def max_rate(
             f"{_fmt(refused * w)} was not (bisection to a factor {1 + rel_tol:g})"
         )
     return RateBound(s_best * w, cert, float(rel_tol), solves, note)
+
+
+def report_rate(
+    model: LpvModel,
+    pairs: list[tuple[float, float]],
+    stable: bool,
+    q: bool | None,
+    asked: bool | str,
+    degree: int,
+    worst_p: Any,
+) -> tuple[NDArray[np.float64] | None, RateCertificate | None, str]:
+    """The bounded-rate part of :func:`lpvid.stability` (``rate=True`` or ``"small"``)."""
+    worst = np.atleast_1d(np.asarray(worst_p, dtype=float))
+    if not asked:
+        return None, None, ""
+    if model.Ts is not None:
+        return (
+            None,
+            None,
+            (
+                "not certified: the rate certificate is for continuous-time models "
+                "(lpvid.stable.rates: discrete time is not built)"
+            ),
+        )
+    if not stable:
+        return (
+            None,
+            None,
+            (f"not stable for any rate: the frozen model at p = {_fmt(worst)} is unstable"),
+        )
+    if q is True:
+        return np.full(len(pairs), np.inf), None, "any rate (quadratically stable)"
+    if asked == "small":
+        terms = polynomial_terms(model, pairs)
+        deg_a = 0 if terms is None else max(sum(e) for e in terms)
+        size = program_size(model.n_states, len(pairs), deg_a, degree, False)
+        if size["bytes"] > SMALL_RATE_BYTES:
+            return (
+                None,
+                None,
+                (
+                    f"not computed here (one program of about {size['bytes'] / 2**20:.0f} MiB, "
+                    f"blocks up to {max(size['blocks'])}: minutes); lpvid.max_rate(model) "
+                    "computes it"
+                ),
+            )
+    try:
+        found = max_rate(model, as_convention(pairs), degree=degree)
+    except MemoryError as exc:
+        return None, None, f"not decided: {exc}"
+    return found.rate, found.certificate, found.note

@@ -39,10 +39,10 @@ from lpvid._minimise import minimise_bounded
 from lpvid._problemlike import ProblemLike
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
-from lpvid.stable.lyapunov import LyapunovCertificate, quadratic_stability
-from lpvid.stable.multi import box_quadratic, polynomial_terms
+from lpvid.stable.lyapunov import LyapunovCertificate
+from lpvid.stable.multi import model_quadratic
 from lpvid.stable.ranges import as_convention, box_grid, check_range, polynomial_A, to_p
-from lpvid.stable.rates import RateCertificate, max_rate
+from lpvid.stable.rates import RateCertificate, report_rate
 
 __all__ = ["StabilityReport", "format_p", "margins", "stability"]
 
@@ -314,7 +314,7 @@ def stability(
     p_range: Any = None,
     *,
     quadratic: bool = True,
-    rate: bool = False,
+    rate: bool | str = False,
     rate_degree: int = 2,
 ) -> StabilityReport:
     """Stability of every frozen model over the whole scheduling range, and quadratic stability.
@@ -332,11 +332,13 @@ def stability(
     quadratic : bool
         Also look for a common quadratic Lyapunov function (a semidefinite
         program; needs the clarabel package, ``pip install "lpvid[lmi]"``).
-    rate : bool
+    rate : bool or "small"
         Also find the largest rate of variation certified with a
         parameter-dependent ``P(p)`` (:func:`lpvid.max_rate`; continuous
         time; about ten programs). Skipped (``rate = inf``) when the model is
-        quadratically stable.
+        quadratically stable. ``"small"``: only when one program's memory
+        estimate is at most :data:`lpvid.stable.rates.SMALL_RATE_BYTES` (seconds, not minutes;
+        the report's choice), else ``rate_note`` says how to ask.
     rate_degree : int
         Total degree of ``P(p)`` in the mapped parameters for ``rate``.
 
@@ -361,6 +363,8 @@ def stability(
 
     """
     t0 = time.perf_counter()
+    if rate not in (True, False, "small"):
+        raise ValueError(f'rate: expected True, False or "small", got {rate!r}')
     if isinstance(p_range, ProblemLike):
         p_range = p_range.p_range
     pairs = check_range(model, p_range)
@@ -400,8 +404,8 @@ def stability(
             (f"not quadratically stable: the frozen model at p = {format_p(worst_p)} is unstable"),
         )
     else:
-        q, cert, note = _quadratic(model, pairs, coef, discrete)
-    nu, rate_cert, rate_note = _rate(model, pairs, stable, q, rate, rate_degree, worst_p)
+        q, cert, note = model_quadratic(model, pairs, coef, discrete)
+    nu, rate_cert, rate_note = report_rate(model, pairs, stable, q, rate, rate_degree, worst_p)
     return StabilityReport(
         stable=stable,
         margin=float(margin),
@@ -419,61 +423,3 @@ def stability(
         rate_certificate=rate_cert,
         rate_note=rate_note,
     )
-
-
-def _quadratic(
-    model: LpvModel, pairs: list[tuple[float, float]], coef: Any, discrete: bool
-) -> tuple[bool | None, LyapunovCertificate | None, str]:
-    """The quadratic certificate: exact for one parameter, a sum of squares for several."""
-    if len(pairs) == 1 and coef is not None:
-        return quadratic_stability(coef, discrete)
-    terms = None if len(pairs) == 1 else polynomial_terms(model, pairs)
-    if terms is None:
-        return (
-            None,
-            None,
-            (
-                "quadratic stability not decided: the LMI certificate covers polynomial "
-                "dependence (Polynomial, Legendre bases)"
-            ),
-        )
-    try:
-        return box_quadratic(terms, discrete)
-    except MemoryError as exc:
-        return None, None, f"quadratic stability not decided: {exc}"
-
-
-def _rate(
-    model: LpvModel,
-    pairs: list[tuple[float, float]],
-    stable: bool,
-    q: bool | None,
-    asked: bool,
-    degree: int,
-    worst_p: Any,
-) -> tuple[NDArray[np.float64] | None, RateCertificate | None, str]:
-    """The bounded-rate part of the report (``stability(..., rate=True)``)."""
-    if not asked:
-        return None, None, ""
-    if model.Ts is not None:
-        return (
-            None,
-            None,
-            (
-                "not certified: the rate certificate is for continuous-time models "
-                "(lpvid.stable.rates: discrete time is not built)"
-            ),
-        )
-    if not stable:
-        return (
-            None,
-            None,
-            (f"not stable for any rate: the frozen model at p = {format_p(worst_p)} is unstable"),
-        )
-    if q is True:
-        return np.full(len(pairs), np.inf), None, "any rate (quadratically stable)"
-    try:
-        found = max_rate(model, as_convention(pairs), degree=degree)
-    except MemoryError as exc:
-        return None, None, f"not decided: {exc}"
-    return found.rate, found.certificate, found.note
