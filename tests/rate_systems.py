@@ -8,7 +8,12 @@ T(p)^-1 x`` obeys the time-invariant-in-``p`` equation ``z' = (A0 - sum_k
 v_k N_k) z`` (``v = dp/dt``), so a common Lyapunov matrix ``P0`` of the
 vertices ``A0 - sum_k s_k nu_k N_k`` gives ``P(p) = T(p)^-T P0 T(p)^-1``, a
 polynomial of degree 2 that certifies the rates ``nu``: a known *lower*
-bound of what a degree-2 certificate must find.
+bound of what a degree-2 certificate must find. The constant-rate threshold
+(``A0 - v N`` unstable) is *not* an upper bound here: on a bounded box a
+constant rate ends at the box's edge, and sweeping back and forth does not
+grow (the certificate finds 3.2 for ``A0 = [[-1, 0], [-1, -1]]``, ``N =
+e_1 e_2^T`` on (0, 3), where ``A0 - v N`` is unstable for ``v > 1``).
+Hence the rotation below, whose unstable scheduling is periodic.
 
 **A rotation in two parameters** (:func:`rotating`): ``A(s) = a I + b J +
 k (s_1 E_1 + s_2 E_2)`` (``s`` the mapped parameters, ``J`` the rotation
