@@ -90,6 +90,8 @@ def test_report_has_the_trust_section_and_figures(tmp_path, monkeypatch, plt):
     text = path.read_text()
     assert "## Between the points: uncertainty and stability" in text
     assert "parameter covariance" in text and "frozen models stable" in text
+    # A small continuous-time model: the largest certified rate is in the stability lines.
+    assert "- bounded rate: " in text
     for name in ("band_identification.png", "band_validation.png", "band_map.png"):
         assert (tmp_path / "figures" / name).is_file(), name
         assert f"figures/{name}" in text

@@ -364,7 +364,8 @@ def test_two_parameters():
     assert rep.stable and rep.method == "grid"
     np.testing.assert_allclose(rep.worst_p, [1.0, 1.0])
     assert rep.margin == pytest.approx(0.05)
-    assert rep.quadratic is None and "one scheduling parameter" in rep.note
+    # Several parameters: the sum of squares on the box (issue 62); |a| <= 0.95 with P = 1.
+    assert rep.quadratic is True and "box of 2 parameters" in rep.note
 
 
 def test_two_parameters_refine_between_the_grid_points(monkeypatch):

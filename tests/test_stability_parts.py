@@ -391,7 +391,7 @@ def test_report_of_a_grid_check():
     assert rep.margin == pytest.approx(0.2, abs=1e-12)
     assert rep.note == (
         "quadratic stability not decided: the LMI certificate covers polynomial "
-        "dependence (Polynomial, Legendre bases) on one scheduling parameter"
+        "dependence (Polynomial, Legendre bases)"
     )
 
 

@@ -56,6 +56,7 @@ from lpvid.pipeline.result import IdentifyResult
 from lpvid.pipeline.run import identify
 from lpvid.selection.grid import select
 from lpvid.selection.result import GridRow, SelectResult
+from lpvid.stable.rates import RateBound, RateCertificate, max_rate, rate_stability
 from lpvid.stable.scan import stability
 from lpvid.trust import Covariance, LyapunovCertificate, StabilityReport
 from lpvid.trust.silent import SilentCount
@@ -88,6 +89,8 @@ __all__ = [
     "PathSettings",
     "Polynomial",
     "Problem",
+    "RateBound",
+    "RateCertificate",
     "SelectResult",
     "SilentCount",
     "SingularModelError",
@@ -119,10 +122,12 @@ __all__ = [
     "judge",
     "kernel_route",
     "l21_path",
+    "max_rate",
     "multisine",
     "next_points",
     "order_hints",
     "plots",
+    "rate_stability",
     "readers",
     "refit",
     "report",

@@ -220,7 +220,7 @@ def _trust(result: IdentifyResult) -> list[str]:
     if result.between is not None:
         lines += [f"- {line.strip()}" for line in result.between.summary().splitlines()]
     rng = result.stability.p_range if result.stability is not None else None
-    rep = stability(result.model, rng)
+    rep = stability(result.model, rng, rate="small")
     lines += [f"- {line}" for line in rep.summary().splitlines()]
     lines.append(f"- stability check: {rep.seconds:.2f} s")
     return lines + [""]

@@ -20,7 +20,11 @@ smallest local minima are refined in both cases (Brent's method in one
 dimension, Nelder-Mead in several) for ``.margin`` and ``.worst_p``.
 
 **Quadratic stability** (a common Lyapunov matrix over the range, for any
-variation of the scheduling): :mod:`lpvid.stable.lyapunov`.
+variation of the scheduling): :mod:`lpvid.stable.lyapunov` for one
+parameter, :mod:`lpvid.stable.rates` (a sum of squares on the box) for
+several. **A bounded rate** (``rate=True``: the largest ``|dp_k/dt|``
+certified with a parameter-dependent ``P(p)``, continuous time):
+:mod:`lpvid.stable.rates`.
 """
 
 from __future__ import annotations
@@ -36,8 +40,10 @@ from lpvid._minimise import minimise_bounded
 from lpvid._problemlike import ProblemLike
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
-from lpvid.stable.lyapunov import LyapunovCertificate, quadratic_stability
+from lpvid.stable.lyapunov import LyapunovCertificate
+from lpvid.stable.multi import model_quadratic
 from lpvid.stable.ranges import as_convention, box_grid, check_range, polynomial_A, to_p
+from lpvid.stable.rates import RateCertificate, report_rate
 
 __all__ = ["StabilityReport", "format_p", "margins", "stability"]
 
@@ -86,6 +92,17 @@ class StabilityReport:
         What the quadratic test found, in words.
     seconds : float
         Time taken.
+    rate : ndarray or None
+        The largest rate bounds ``nu_k`` (``|dp_k/dt| <= nu_k``, shape (Np,),
+        model time units) for which a parameter-dependent Lyapunov function
+        was certified (:func:`lpvid.max_rate`, to its ``rel_tol``); ``inf``
+        when ``quadratic`` is True (any rate); None when not asked or not
+        certified (``rate_note`` says why).
+    rate_certificate : RateCertificate or None
+        The certificate at ``rate`` (None when ``rate`` is ``inf``: then
+        ``certificate`` holds for every rate).
+    rate_note : str
+        What the rate test found, in words (empty when not asked).
     """
 
     stable: bool
@@ -100,6 +117,9 @@ class StabilityReport:
     certificate: LyapunovCertificate | None
     note: str
     seconds: float = field(default=0.0)
+    rate: NDArray[np.float64] | None = None
+    rate_certificate: RateCertificate | None = None
+    rate_note: str = ""
 
     def summary(self) -> str:
         """One sentence on frozen stability, one on quadratic stability."""
@@ -118,7 +138,8 @@ class StabilityReport:
             f"frozen models {state} over p in {_fmt_range(self.p_range)}: smallest margin "
             f"{self.margin:.3g} ({kind}) at p = {where} ({how})"
         )
-        return f"{first}\n{self.note}"
+        rate = f"\nbounded rate: {self.rate_note}" if self.rate_note else ""
+        return f"{first}\n{self.note}{rate}"
 
     def __str__(self) -> str:
         return self.summary()
@@ -289,7 +310,14 @@ def _refine_nd(
     return best_p, best_m, evals
 
 
-def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -> StabilityReport:
+def stability(
+    model: LpvModel,
+    p_range: Any = None,
+    *,
+    quadratic: bool = True,
+    rate: bool | str = False,
+    rate_degree: int = 2,
+) -> StabilityReport:
     """Stability of every frozen model over the whole scheduling range, and quadratic stability.
 
     See the notes of :mod:`lpvid.stable.scan` for how the continuum is
@@ -305,6 +333,15 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
     quadratic : bool
         Also look for a common quadratic Lyapunov function (a semidefinite
         program; needs the clarabel package, ``pip install "lpvid[lmi]"``).
+    rate : bool or "small"
+        Also find the largest rate of variation certified with a
+        parameter-dependent ``P(p)`` (:func:`lpvid.max_rate`; continuous
+        time; about ten programs). Skipped (``rate = inf``) when the model is
+        quadratically stable. ``"small"``: only when one program's memory
+        estimate is at most :data:`lpvid.stable.rates.SMALL_RATE_BYTES` (seconds, not minutes;
+        the report's choice), else ``rate_note`` says how to ask.
+    rate_degree : int
+        Total degree of ``P(p)`` in the mapped parameters for ``rate``.
 
     Returns
     -------
@@ -327,6 +364,8 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
 
     """
     t0 = time.perf_counter()
+    if rate not in (True, False, "small"):
+        raise ValueError(f'rate: expected True, False or "small", got {rate!r}')
     if isinstance(p_range, ProblemLike):
         p_range = p_range.p_range
     pairs = check_range(model, p_range)
@@ -366,17 +405,9 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
             None,
             (f"not quadratically stable: the frozen model at p = {format_p(worst_p)} is unstable"),
         )
-    elif coef is None:
-        q, cert, note = (
-            None,
-            None,
-            (
-                "quadratic stability not decided: the LMI certificate covers polynomial "
-                "dependence (Polynomial, Legendre bases) on one scheduling parameter"
-            ),
-        )
     else:
-        q, cert, note = quadratic_stability(coef, discrete)
+        q, cert, note = model_quadratic(model, pairs, coef, discrete)
+    nu, rate_cert, rate_note = report_rate(model, pairs, stable, q, rate, rate_degree, worst_p)
     return StabilityReport(
         stable=stable,
         margin=float(margin),
@@ -390,4 +421,7 @@ def stability(model: LpvModel, p_range: Any = None, *, quadratic: bool = True) -
         certificate=cert,
         note=note,
         seconds=time.perf_counter() - t0,
+        rate=nu,
+        rate_certificate=rate_cert,
+        rate_note=rate_note,
     )
