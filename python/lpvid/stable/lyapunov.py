@@ -45,8 +45,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["LyapunovCertificate", "quadratic_stability", "KAPPA"]
+__all__ = ["LyapunovCertificate", "quadratic_stability", "KAPPA", "NO_CLARABEL"]
 
+#: What a certificate says when the clarabel package is missing.
+NO_CLARABEL = 'not decided: the LMI needs the clarabel package (pip install "lpvid[lmi]")'
 #: Largest condition number of the Lyapunov matrix searched: ``I <= P <= KAPPA I``.
 KAPPA = 1e6
 #: Largest side of the semidefinite blocks attempted (larger LMIs give None).
@@ -170,11 +172,7 @@ def quadratic_stability(
         import clarabel
         import scipy.sparse as sp
     except ImportError:
-        return (
-            None,
-            None,
-            'not decided: the LMI needs the clarabel package (pip install "lpvid[lmi]")',
-        )
+        return None, None, NO_CLARABEL
     A = np.asarray(coef, dtype=float)
     d, n = A.shape[0] - 1, A.shape[1]
     scale = 1.0

@@ -26,7 +26,13 @@ from lpvid.data.basis import Legendre, Polynomial
 from lpvid.model.frozen import frozen_A
 from lpvid.model.lpv import LpvModel
 from lpvid.stable.boxsos import Exp, monomials, solve_box
-from lpvid.stable.lyapunov import _EPS_TOL, KAPPA, LyapunovCertificate, quadratic_stability
+from lpvid.stable.lyapunov import (
+    _EPS_TOL,
+    KAPPA,
+    NO_CLARABEL,
+    LyapunovCertificate,
+    quadratic_stability,
+)
 from lpvid.stable.ranges import box_grid, polynomial_A, to_p
 
 #: Points of the grid whose program can prove that no common P exists (several parameters).
@@ -129,11 +135,7 @@ def box_quadratic(
     try:
         import clarabel  # noqa: F401
     except ImportError:
-        return (
-            None,
-            None,
-            'not decided: the LMI needs the clarabel package (pip install "lpvid[lmi]")',
-        )
+        return None, None, NO_CLARABEL
     As, scale = _scaled(A, discrete)
     zero = np.zeros(n_params)
     sol = solve_box([(As, zero)], n_params, 0, discrete, kappa, extra, "quadratic stability")
