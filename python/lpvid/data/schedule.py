@@ -23,6 +23,7 @@ __all__ = [
     "as_rows",
     "axis_values",
     "check_positive",
+    "range_fraction",
     "scale_grid",
     "decades",
     "scale_list",
@@ -306,3 +307,31 @@ def scale_grid(
     scales = tuple(scales) if scales is not None else ("linear",) * len(pairs)
     axes = [axis_values(lo, hi, per_axis, sc) for (lo, hi), sc in zip(pairs, scales, strict=True)]
     return np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+
+
+def range_fraction(
+    p: NDArray[np.float64],
+    pairs: Sequence[tuple[float, float]],
+    scales: Sequence[str] | None = None,
+) -> NDArray[np.float64]:
+    """``p`` (M, Np) as the fraction of the range on every parameter's scale.
+
+    ``(p - lo) / (hi - lo)``; on the log scale the fraction of ``log10(p)``
+    between ``log10(lo)`` and ``log10(hi)`` (``p`` and ``lo`` above zero).
+    ``scales`` default linear on every parameter.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from lpvid.data.schedule import range_fraction
+    >>> range_fraction(np.array([[0.5, 10.0]]), [(0.0, 1.0), (1.0, 100.0)], ("linear", "log"))
+    array([[0.5, 0.5]])
+
+    """
+    lo = np.array([a for a, _ in pairs])
+    hi = np.array([b for _, b in pairs])
+    out = (p - lo) / (hi - lo)
+    for k, scale in enumerate(scales or ()):
+        if scale == "log":
+            out[:, k] = np.log10(p[:, k] / lo[k]) / np.log10(hi[k] / lo[k])
+    return out

@@ -70,7 +70,7 @@ from lpvid._checks import positive_int, real_array
 from lpvid._rows import unique_rows
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
-from lpvid.data.schedule import range_pairs, scale_grid
+from lpvid.data.schedule import range_fraction, range_pairs, scale_grid
 from lpvid.experiment.design import (
     TIE,
     GridParts,
@@ -173,9 +173,8 @@ def _unmeasured(
     scales: Scales = None,
 ) -> NDArray[np.float64]:
     """The candidates (M, Np) that are not measured scheduling values (within the slack)."""
-    near = np.abs(
-        _scaled(cands, pairs, scales)[:, None, :] - _scaled(measured, pairs, scales)[None, :, :]
-    )
+    at, seen = range_fraction(cands, pairs, scales), range_fraction(measured, pairs, scales)
+    near = np.abs(at[:, None, :] - seen[None, :, :])
     return cands[~np.any(np.all(near <= _SLACK, axis=2), axis=1)]
 
 
@@ -189,23 +188,6 @@ def default_candidates(p_range: Any, measured: ArrayLike) -> NDArray[np.float64]
     pairs = range_pairs(p_range)
     rows = real_array(measured, "measured", ndim=(1, 2)).reshape(-1, len(pairs))
     return _unmeasured(_range_grid(pairs), rows, pairs)
-
-
-def _scaled(
-    p: NDArray[np.float64], pairs: list[tuple[float, float]], scales: Scales = None
-) -> NDArray[np.float64]:
-    """``p`` (M, Np) as the fraction of the range on every parameter's scale (default linear).
-
-    On the log scale the fraction of ``log10(p)`` between ``log10(lo)`` and
-    ``log10(hi)`` (``p`` and ``lo`` above zero: the basis's domain).
-    """
-    lo = np.array([a for a, _ in pairs])
-    hi = np.array([b for _, b in pairs])
-    out = (p - lo) / (hi - lo)
-    for k, scale in enumerate(scales or ()):
-        if scale == "log":
-            out[:, k] = np.log10(p[:, k] / lo[k]) / np.log10(hi[k] / lo[k])
-    return out
 
 
 def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.float64]:
@@ -226,7 +208,7 @@ def _candidates(value: Any, pairs: list[tuple[float, float]]) -> NDArray[np.floa
         )
     if arr.shape[0] == 0:
         raise ValueError("candidates: expected at least one scheduling value, got none")
-    s = _scaled(arr, pairs)
+    s = range_fraction(arr, pairs)
     outside = np.any((s < -_SLACK) | (s > 1 + _SLACK), axis=1)
     if np.any(outside):
         bad = arr[outside]
@@ -258,8 +240,8 @@ def _noise(
         if np.any(s <= 0):
             raise ValueError("sigma: standard deviations must be > 0 everywhere")
         return np.broadcast_to(s, (len(candidates), *shape))
-    measured = _scaled(data.p.reshape(data.n_points, -1), pairs, scales)
-    at = _scaled(candidates, pairs, scales)
+    measured = range_fraction(data.p.reshape(data.n_points, -1), pairs, scales)
+    at = range_fraction(candidates, pairs, scales)
     nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
     return data.sigma[nearest]
 
@@ -349,8 +331,8 @@ def suggest_points(
         coefficient_weights(model, cands),
         R,
         k,
-        _scaled(cands, pairs, scales),
-        _scaled(data.p.reshape(data.n_points, -1), pairs, scales),
+        range_fraction(cands, pairs, scales),
+        range_fraction(data.p.reshape(data.n_points, -1), pairs, scales),
     )
     points = cands[picks]
     return Suggestion(
@@ -386,9 +368,9 @@ def _by_committee(
     """The committee's criterion (module notes)."""
     data = result.data
     f = data.freqs_hz
-    measured = _scaled(data.p.reshape(data.n_points, -1), pairs, scales)
+    measured = range_fraction(data.p.reshape(data.n_points, -1), pairs, scales)
     h = 1.0 / (data.n_points + k)
-    at, on_grid = _scaled(cands, pairs, scales), _scaled(grid, pairs, scales)
+    at, on_grid = range_fraction(cands, pairs, scales), range_fraction(grid, pairs, scales)
     band = _relative_spread(between, f, grid)
     gap = np.min(np.linalg.norm(at[:, None, :] - measured[None, :, :], axis=2), axis=1)
     # a measurement at a candidate settles the spread around it, to zero at the candidate

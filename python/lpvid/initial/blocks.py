@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
-from lpvid.data.schedule import model_range, range_pairs
+from lpvid.data.schedule import model_range, range_fraction, range_pairs
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.fit.results import FitResult
 from lpvid.fit.settings import START_FTOL
@@ -123,11 +123,10 @@ def _allowed(levels: Sequence[int], k: int) -> set[int]:
 
 
 def _scaled_points(data: FrfData, model: LpvModel) -> NDArray[np.float64]:
+    """The data's points as fractions of the model's range, on the basis's scales."""
     rng = model.p_range if model.p_range is not None else data.p_range
     pairs = range_pairs(rng, model.basis.n_params)
-    lo = np.array([a for a, _ in pairs])
-    span = np.array([b - a for a, b in pairs])
-    return (data.p.reshape(data.n_points, -1) - lo) / span
+    return range_fraction(data.p.reshape(data.n_points, -1), pairs, model.basis.scales)
 
 
 def block_start(
