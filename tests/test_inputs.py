@@ -83,6 +83,33 @@ def test_bad_data_is_refused(change, exc, match):
         lpvid.FrfData(**kwargs)
 
 
+def test_a_nan_is_named_by_its_point_and_line():
+    """The error says where the first NaN or Inf is, by point and line, and how many."""
+    G = np.ones((3, 4, 2, 1), complex)
+    G[2, 1, 1, 0] = np.nan
+    G[2, 3, 0, 0] = np.inf
+    with pytest.raises(
+        ValueError,
+        match=r"^G: contains NaN or Inf \(2 entries, the first at "
+        r"point 2, line 1, output 1, input 0\)$",
+    ):
+        lpvid.FrfData(**{**good(), "G": G})
+    G2 = np.ones((3, 4), complex)
+    G2[0, 3] = np.inf
+    with pytest.raises(
+        ValueError, match=r"^G: contains NaN or Inf \(1 entry at point 0, line 3\)$"
+    ):
+        lpvid.FrfData(**{**good(), "G": G2, "sigma": None})
+    sigma = np.ones((3, 4, 2, 1))
+    sigma[1, 0, 0, 0] = np.nan
+    with pytest.raises(
+        ValueError, match=r"^sigma: contains NaN or Inf \(1 entry at point 1, line 0"
+    ):
+        lpvid.FrfData(**{**good(), "sigma": sigma})
+    with pytest.raises(ValueError, match=r"^freqs_hz: contains NaN or Inf \(1 entry at line 2\)$"):
+        lpvid.FrfData(**{**good(), "freqs_hz": np.array([1.0, 2.0, np.inf, 4.0])})
+
+
 def test_bad_model_shapes_are_refused():
     basis = lpvid.Polynomial(1, domain=(0, 1))
     A, B, C, D = np.zeros((2, 3, 3)), np.ones((2, 3, 1)), np.ones((2, 2, 3)), np.zeros((2, 2, 1))

@@ -14,9 +14,15 @@ from numpy.typing import NDArray
 
 
 def real_array(
-    value: Any, name: str, ndim: int | tuple[int, ...] | None = None
+    value: Any,
+    name: str,
+    ndim: int | tuple[int, ...] | None = None,
+    axes: tuple[str, ...] = (),
 ) -> NDArray[np.float64]:
     """Return ``value`` as a finite float64 array, or raise naming ``name``.
+
+    ``axes`` names the array's axes (``("point", "line", ...)``) for the
+    error that says where the first NaN or Inf is (:func:`finite`).
 
     Always a new C-ordered array: numpy sums along a strided axis in
     another order than along a contiguous one (pairwise summation only
@@ -39,17 +45,19 @@ def real_array(
         raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
     arr = np.array(arr, dtype=np.float64, order="C")
     _check_ndim(arr, name, ndim)
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: contains NaN or Inf")
+    finite(arr, name, axes)
     return arr
 
 
 def complex_array(
-    value: Any, name: str, ndim: int | tuple[int, ...] | None = None
+    value: Any,
+    name: str,
+    ndim: int | tuple[int, ...] | None = None,
+    axes: tuple[str, ...] = (),
 ) -> NDArray[np.complex128]:
     """Return ``value`` as a finite complex128 array, or raise naming ``name``.
 
-    A new C-ordered array, as :func:`real_array`.
+    A new C-ordered array, as :func:`real_array`, ``axes`` as there.
     """
     try:
         arr = np.asarray(value)
@@ -59,9 +67,27 @@ def complex_array(
         raise TypeError(f"{name}: must be numeric, got dtype {arr.dtype}")
     arr = np.array(arr, dtype=np.complex128, order="C")
     _check_ndim(arr, name, ndim)
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: contains NaN or Inf")
+    finite(arr, name, axes)
     return arr
+
+
+def finite(arr: np.ndarray, name: str, axes: tuple[str, ...] = ()) -> None:
+    """Raise naming ``name`` when ``arr`` holds a NaN or Inf: how many, and where the first is.
+
+    The first is given by the names of ``axes`` where they are known
+    (``point 2, line 17``) and by its index otherwise.
+    """
+    bad = ~np.isfinite(arr)
+    if not bad.any():
+        return
+    first = tuple(int(i) for i in np.argwhere(bad)[0])
+    if len(axes) >= len(first) > 0:
+        where = ", ".join(f"{axis} {i}" for axis, i in zip(axes, first, strict=False))
+    else:
+        where = f"index {first}" if first else "its value"
+    count = int(bad.sum())
+    many = f"{count} entries, the first" if count > 1 else "1 entry"
+    raise ValueError(f"{name}: contains NaN or Inf ({many} at {where})")
 
 
 def _check_ndim(arr: np.ndarray, name: str, ndim: int | tuple[int, ...] | None) -> None:

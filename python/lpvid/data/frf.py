@@ -19,6 +19,10 @@ from lpvid.readers import read_experiment
 
 __all__ = ["FrfData", "z_points"]
 
+#: The axes of G and sigma, and of p, as the errors name them.
+_G_AXES = ("point", "line", "output", "input")
+_P_AXES = ("point", "parameter")
+
 
 def z_points(freqs_hz: ArrayLike, Ts: float | None) -> NDArray[np.complex128]:
     """Evaluation points of a transfer function at the given frequencies.
@@ -92,7 +96,7 @@ class FrfData:
         Ts: float | None = None,
     ) -> None:
         self.Ts = sample_time(Ts)
-        p_arr = real_array(p, "p", ndim=(1, 2))
+        p_arr = real_array(p, "p", ndim=(1, 2), axes=_P_AXES)
         if p_arr.shape[0] == 0:
             raise ValueError("p: needs at least one scheduling point")
         if p_arr.ndim == 2 and p_arr.shape[1] == 0:
@@ -100,7 +104,7 @@ class FrfData:
         rows = p_arr.reshape(p_arr.shape[0], -1)
         if len(unique_rows(rows)[0]) != rows.shape[0]:
             raise ValueError("p: scheduling values must be distinct (found a duplicate point)")
-        freqs = real_array(freqs_hz, "freqs_hz", ndim=1)
+        freqs = real_array(freqs_hz, "freqs_hz", ndim=1, axes=("line",))
         if freqs.size == 0:
             raise ValueError("freqs_hz: needs at least one frequency line")
         if np.any(freqs < 0):
@@ -112,7 +116,7 @@ class FrfData:
                 f"freqs_hz: {freqs[-1]:g} Hz is above the Nyquist frequency "
                 f"{0.5 / self.Ts:g} Hz of Ts={self.Ts:g} s"
             )
-        g = complex_array(G, "G", ndim=(2, 4))
+        g = complex_array(G, "G", ndim=(2, 4), axes=_G_AXES)
         if g.ndim == 2:
             g = g[:, :, None, None]
         n_points, n_lines = p_arr.shape[0], freqs.size
@@ -126,7 +130,7 @@ class FrfData:
         if sigma is None:
             s = np.ones(g.shape)
         else:
-            s = real_array(sigma, "sigma")
+            s = real_array(sigma, "sigma", axes=_G_AXES)
             if s.ndim == 0:
                 s = np.full(g.shape, float(s))
             elif s.ndim == 2 and g.shape[2:] == (1, 1):
