@@ -37,6 +37,10 @@ def files(tmp_path_factory):
     np.savez(folder / "partial.npz", p=data.p, freqs_hz=data.freqs_hz)
     lpvid.LpvModel([[0.5]], [[1.0]], [[1.0]], Ts=1.0).save(folder / "model.json")
     (folder / "bad.toml").write_text('Ts = 0.0005\noutputs = ["y"]\n')
+    G = data.G.copy()
+    G[3, 7, 1, 0] = np.nan
+    np.savez(folder / "nan.npz", p=data.p, freqs_hz=data.freqs_hz, G=G, Ts=data.Ts)
+    (folder / "script.py").write_text("print('not data')\n")
     (folder / "a-file").write_text("in the way")
     (folder / "a-folder").mkdir()
     return folder
@@ -66,6 +70,12 @@ MISUSE = [
     ("data-unreadable", ["fit", "{f}/garbage.npz", "--order", "6", "--out", "{out}"], "data"),
     ("data-incomplete", ["fit", "{f}/partial.npz", "--order", "6", "--out", "{out}"], "data"),
     ("data-a-model-file", ["fit", "{f}/model.json", "--order", "6", "--out", "{out}"], "data"),
+    (
+        "data-with-a-nan",
+        ["fit", "{f}/nan.npz", "--order", "6", "--out", "{out}"],
+        "point 3, line 7",
+    ),
+    ("data-a-python-file", ["fit", "{f}/script.py", "--order", "6", "--out", "{out}"], ".toml"),
     # --order
     ("order-missing", ["fit", "{f}/id.npz", "--out", "{out}"], "--order"),
     ("order-zero", [*FIT[:3], "0", *FIT[4:]], "--order"),
@@ -165,6 +175,28 @@ def test_misuse_is_one_line_naming_the_option_and_exit_code_2(
     # refused before any computation: no stage of the pipeline started
     assert "local models" not in captured.out
     assert not (tmp_path / "out").exists()
+
+
+def test_no_command_is_a_usage_error(capsys):
+    """`lpvid` alone prints the help to stderr, says a command is needed, and exits 2."""
+    assert main([]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "usage: lpvid" in captured.err
+    assert (
+        captured.err.splitlines()[-1] == "lpvid: error: a command is needed (demo, fit or select)"
+    )
+
+
+def test_fit_help_says_what_the_basis_holds_and_how_to_make_the_example(capsys):
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "the constant and the powers" in text
+    assert "default poly:2 (the demo's gantry uses poly:4)" in text
+    assert "lpvid.datasets.gantry().identification.save('gantry.npz')" in text
+    for suffix in (".npz", ".mat", ".toml"):
+        assert suffix in text.split("positional arguments:")[1].split("options:")[0]
 
 
 def test_order_too_high_names_the_largest_order_the_data_allow(files, tmp_path, capsys):

@@ -168,11 +168,24 @@ def basis_of(
         raise misuse(exc) from exc
 
 
+#: What ``lpvid fit`` and ``lpvid select`` read: data files and manifests.
+DATA_SUFFIXES = (".npz", ".mat", ".toml")
+
+
 def load(path: str, what: str, lines: str = "same") -> lpvid.FrfData:
+    """``path`` read as FRF data (a ``.npz``/``.mat`` file or a ``.toml`` manifest).
+
+    Every failure is a :class:`Misuse` naming ``what``.
+    """
     if not Path(path).exists():
         raise Misuse(f"{what}: no such file: {path}")
     if not Path(path).is_file():
         raise Misuse(f"{what}: not a file: {path}")
+    if Path(path).suffix.lower() not in DATA_SUFFIXES:
+        raise Misuse(
+            f"{what}: expected a .npz or .mat data file or a .toml manifest of measured "
+            f"files, got {Path(path).name!r}"
+        )
     try:
         if Path(path).suffix.lower() == ".toml":
             return lpvid.FrfData.from_files(path, lines=lines)

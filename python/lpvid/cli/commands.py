@@ -58,9 +58,11 @@ B, C, D) is kept only when it lowers V_NLS by more than about gamma times the
 number of data points; 1e-3 keeps almost everything, 1e-1 keeps only what
 matters a lot.
 
-example:
+example, on the demo's gantry (its two files made first):
+  python -c "import lpvid; lpvid.datasets.gantry().identification.save('gantry.npz')"
+  python -c "import lpvid; lpvid.datasets.gantry().validation.save('gantry-val.npz')"
   lpvid fit gantry.npz --order 6 --basis poly:4 --validation gantry-val.npz --out fit1
-  lpvid fit gantry.toml --order 6 --basis poly:4 --out fit2
+  lpvid fit gantry.toml --order 6 --basis poly:4 --out fit2   (a manifest, docs/data.md)
 """
 
 
@@ -104,7 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument(
         "--basis",
         default="poly:2",
-        help="scheduling dependency: poly:D (powers 1..D) or legendre:D (default poly:2)",
+        help="scheduling dependency: poly:D (the constant and the powers s, ..., s^D of the "
+        "scheduling s mapped to [-1, 1] by --domain: D + 1 functions) or legendre:D "
+        "(Legendre polynomials of degree 0 to D); default poly:2 (the demo's gantry uses poly:4)",
     )
     add_domain(fit)
     add_scale(fit, ("linear", "log"), "linear")
@@ -293,9 +297,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 0
+    if args.command is None:  # a usage error, as a missing argument is
+        parser.print_help(sys.stderr)
+        print("lpvid: error: a command is needed (demo, fit or select)", file=sys.stderr)
+        return EXIT_MISUSE
 
     def say_warning(message: Any, category: Any, *rest: Any, **kw: Any) -> None:
         print(f"lpvid {args.command}: warning: {message}", file=sys.stderr, flush=True)
