@@ -19,7 +19,7 @@ import pytest
 
 import lpvid
 import lpvid.testing
-from lpvid._spread import Spread
+from lpvid._spread import Spread, check_executor
 
 
 class LastFirst(Executor):
@@ -125,7 +125,7 @@ def test_identify_on_a_dask_cluster_is_the_run_here(stage):
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        on_dask = _identify(ds, client.get_executor())
+        on_dask = _identify(ds, client)  # the client itself, as Dask users hold it
     assert_same_run(here, on_dask)
 
 
@@ -155,6 +155,25 @@ def test_executor_must_be_an_executor(stage):
     ds, _ = stage
     with pytest.raises(TypeError, match="executor: expected a concurrent.futures.Executor"):
         lpvid.identify(ds.identification, ds.order, ds.basis, executor=2)
+
+
+def test_a_dask_client_is_taken_as_its_executor():
+    """A distributed.Client is read as its get_executor(); a look-alike elsewhere is not."""
+    pool = ThreadPoolExecutor(1)
+
+    def client_class(module: str) -> type:
+        return type("Client", (), {"__module__": module, "get_executor": lambda self: pool})
+
+    try:
+        assert check_executor(client_class("distributed.client")()) is pool
+        for module in ("mypackage", "notdistributed.client"):
+            with pytest.raises(TypeError, match="or a distributed.Client, got Client"):
+                check_executor(client_class(module)())
+        broken = type("Client", (), {"__module__": "distributed", "get_executor": lambda s: 3})
+        with pytest.raises(TypeError, match="got Client"):
+            check_executor(broken())
+    finally:
+        pool.shutdown()
 
 
 # The positioning stage without its `fixed` keeps a pinned fit, whose

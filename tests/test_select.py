@@ -122,9 +122,7 @@ def test_dask_cluster_gives_the_thread_result_exactly(grid, quadratic):
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        on_dask = quiet_select(
-            data, orders, degrees, validation=val, executor=client.get_executor()
-        )
+        on_dask = quiet_select(data, orders, degrees, validation=val, executor=client)
     assert on_dask.chosen == threads.chosen and on_dask.reason == threads.reason
     full = {(r.order, r.basis.degree): r for r in grid.grid}
     for a, b in zip(threads.grid, on_dask.grid, strict=True):

@@ -64,13 +64,29 @@ def waited(future: Future[Any]) -> Any:
 
 
 def check_executor(executor: Any) -> Executor | None:
-    """``executor`` checked: None or a :class:`concurrent.futures.Executor`."""
-    if executor is not None and not isinstance(executor, Executor):
-        raise TypeError(
-            f"executor: expected a concurrent.futures.Executor (e.g. "
-            f"distributed.Client(...).get_executor()), got {type(executor).__name__}"
-        )
-    return executor
+    """``executor`` checked: None, a :class:`concurrent.futures.Executor`, or a Dask client.
+
+    A ``distributed.Client`` (what Dask users hold) is taken as its
+    ``get_executor()``: the same cluster, behind the Executor interface.
+    """
+    if executor is None or isinstance(executor, Executor):
+        return executor
+    if _is_dask_client(executor):
+        made = executor.get_executor()
+        if isinstance(made, Executor):
+            return made
+    raise TypeError(
+        f"executor: expected a concurrent.futures.Executor or a distributed.Client, "
+        f"got {type(executor).__name__}"
+    )
+
+
+def _is_dask_client(obj: Any) -> bool:
+    """Whether ``obj`` is a ``distributed.Client`` (known without importing distributed)."""
+    return any(
+        cls.__name__ == "Client" and cls.__module__.split(".")[0] == "distributed"
+        for cls in type(obj).__mro__
+    ) and callable(getattr(obj, "get_executor", None))
 
 
 def _run(

@@ -73,7 +73,7 @@ def identify(
     time_data: Any = None,
     stable: bool = False,
     refit: bool = True,
-    executor: Executor | None = None,
+    executor: Any = None,
 ) -> IdentifyResult:
     """Identify an LPV model from FRF data: the whole pipeline.
 
@@ -171,7 +171,7 @@ def identify(
         with its dropped groups fixed at zero (removes the shrinkage of the
         l2,1 penalty) and return the refit when it validates better
         (:attr:`IdentifyResult.refitted`). False: never refit.
-    executor : concurrent.futures.Executor, optional
+    executor : concurrent.futures.Executor or distributed.Client, optional
         Where the independent fits run, each one task: the local model of
         every scheduling point, the runners of every round of the race of
         the starts, and (on an executor of other processes, such as a Dask
@@ -183,8 +183,9 @@ def identify(
         model. Default: here, one after the other. The core already spreads
         every fit over the cores, and threads gained nothing on a 2-core
         machine (``benches/bench_executor.py``: 0.95-1.06 of the time per
-        stage on the gantry, n = 10 and n = 16). A Dask cluster:
-        ``distributed.Client(address).get_executor()`` (its workers need
+        stage on the gantry, n = 10 and n = 16). A Dask cluster: its
+        ``distributed.Client(address)`` itself (taken as its
+        ``get_executor()``) or that executor (its workers need
         lpvid; the data, models and fits are pickled to them). Tasks on
         threads here run at once, each fit with its own memory: the check
         before any work (MemoryError below) counts one fit, and every fit

@@ -3,7 +3,7 @@
 Every (order, basis) pair is one :func:`lpvid.identify` run (and, without
 validation data, one run per held-out scheduling point): independent work
 handed to a :class:`concurrent.futures.Executor`, threads on the local cores
-by default or a Dask cluster through ``distributed.Client(...).get_executor()``.
+by default or a Dask cluster through its ``distributed.Client``.
 What a task returns is assembled in the grid's order, so the result does not
 depend on where or in which order the tasks ran.
 """
@@ -305,7 +305,7 @@ def select(
     gammas: Any = None,
     fixed: Any = None,
     *,
-    executor: Executor | None = None,
+    executor: Any = None,
     tolerance: float = 0.1,
     progress: Progress | None = None,
     log_scale: Any = "auto",
@@ -379,10 +379,10 @@ def select(
         the fixed parameters of that pair in any form
         :func:`lpvid.fixed_mask` takes. A boolean mask over theta is
         refused: it fits one order and basis only.
-    executor : concurrent.futures.Executor, optional
+    executor : concurrent.futures.Executor or distributed.Client, optional
         Where the runs go. Default: a thread pool with one thread per core
-        (the fits release the GIL). A Dask cluster:
-        ``distributed.Client(address).get_executor()``; its workers need
+        (the fits release the GIL). A Dask cluster: its
+        ``distributed.Client(address)`` (or its ``get_executor()``); its workers need
         lpvid, and everything sent pickles (data, bases, results). The
         pairs already run side by side: each identify run gets no
         executor of its own (its fits run one after the other in its task;
