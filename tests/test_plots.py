@@ -254,6 +254,14 @@ def test_accuracy_path_points_are_vnls_over_the_noise_floor(rng, plt):
     )
     np.testing.assert_allclose(_line(fig, "identification-gamma").get_xdata(), path.gammas)
     np.testing.assert_array_equal(_line(fig, "groups-gamma").get_ydata(), path.n_groups)
+    # every line drawn has a legend entry: the grey groups line too, in its own axes
+    legends = {
+        text.get_text()
+        for axes in fig.axes
+        if axes.get_legend() is not None
+        for text in axes.get_legend().get_texts()
+    }
+    assert "groups kept (right axis)" in legends
     with pytest.raises(ValueError, match=r"^validation_floor: needed with validation_vnls"):
         plots.accuracy_path(path, validation_vnls=vval)
     with pytest.raises(ValueError, match=r"^validation_vnls: expected 3 values \(one per entry\)"):

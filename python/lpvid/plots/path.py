@@ -201,9 +201,10 @@ def accuracy_path(
             lw=0.9,
             marker="d",
             ms=4,
-            label="groups kept",
+            label="groups kept (right axis)",
             gid="groups-gamma",
         )
+        twin.legend(fontsize="small", loc="upper left")
         twin.set_ylabel("groups kept", color="0.35")
         twin.tick_params(axis="y", colors="0.35")
         twin.yaxis.get_major_locator().set_params(integer=True)
