@@ -1,5 +1,7 @@
 """Group magnitudes (the paper's Tables 1-4)."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -30,6 +32,33 @@ def test_group_norms_of_a_known_model():
     # a narrower range shrinks the relative magnitudes by sup |psi_i|
     g2 = m.group_norms(p_range=(1.0, 1.5))
     np.testing.assert_allclose(g2.relative[0, 0], 0.2 * 0.5)
+
+
+def _column_ends(line: str) -> list[int]:
+    """Where each cell of ``line`` ends (cells are apart by two spaces or more)."""
+    return [m.end() for m in re.finditer(r"\S(?=\s{2,}|$)", line)]
+
+
+@pytest.mark.parametrize("degree", [0, 1, 4])
+def test_group_norm_table_rows_line_up(degree):
+    """Every row of the table, the constant's too, ends its cells where the header does."""
+    rng = np.random.default_rng(degree)
+    basis = lpvid.Polynomial(degree, domain=(0, 1)) if degree else None
+    k = degree + 1
+    m = lpvid.LpvModel(
+        rng.normal(size=(k, 3, 3)) * 100,
+        rng.normal(size=(k, 3, 1)),
+        rng.normal(size=(k, 2, 3)),
+        rng.normal(size=(k, 2, 1)),
+        basis,
+    )
+    lines = m.group_norms().table().splitlines()
+    header = _column_ends(lines[0])
+    assert len(header) == 9
+    assert lines[1].startswith("0 (const)") and len(lines) == 2 + degree
+    assert _column_ends(lines[1]) == header[:5]
+    for line in lines[2:]:
+        assert _column_ends(line) == header
 
 
 def test_group_norms_need_a_range():

@@ -72,17 +72,17 @@ class GroupNorms:
                 + [f"{v:.3e}" for v in self.relative[:, i]]
             )
         header = head_l + head_r
+        # The constant's row has no relative magnitudes (they are relative to it).
+        const = ["0 (const)"] + [f"{v:.3e}" for v in self.constant]
         widths = [
-            max(len(h), *(len(r[c]) for r in rows)) if rows else len(h)
+            max([len(h), *(len(r[c]) for r in [const, *rows] if c < len(r))])
             for c, h in enumerate(header)
         ]
-        line = "  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))
-        body = ["  ".join(v.rjust(w) for v, w in zip(r, widths, strict=True)) for r in rows]
-        const = "  ".join(
-            [("0 (const)").rjust(widths[0])]
-            + [f"{v:.3e}".rjust(w) for v, w in zip(self.constant, widths[1:5], strict=True)]
-        )
-        return "\n".join([line, const, *body])
+
+        def joined(cells: list[str]) -> str:
+            return "  ".join(v.rjust(w) for v, w in zip(cells, widths, strict=False))
+
+        return "\n".join([joined(header), joined(const), *(joined(r) for r in rows)])
 
     def __str__(self) -> str:
         return self.table()
