@@ -189,7 +189,7 @@ class Covariance:
         return band_radius(level) * self.frf_std(freqs_hz, p)
 
     def pole_std(
-        self, p: ArrayLike, return_poles: bool = False
+        self, p: ArrayLike, *, return_poles: bool = False
     ) -> NDArray[np.float64] | tuple[NDArray[np.complex128], NDArray[np.float64]]:
         """Standard deviation of every pole of the frozen model at one scheduling value.
 
