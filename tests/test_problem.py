@@ -114,6 +114,25 @@ def test_no_argument_beside_a_problem(small):
         lpvid.identify(problem, gammas=[0.1], stable=True)
 
 
+def test_identify_and_select_take_their_held_arguments_from_the_one_record():
+    """identify's signature gives every argument of the record, with the record's default."""
+    import dataclasses
+    import inspect
+
+    from lpvid.pipeline.problem import IdentifyArguments
+
+    record = {f.name: f.default for f in dataclasses.fields(IdentifyArguments)}
+    params = inspect.signature(lpvid.identify).parameters
+    assert {name: params[name].default for name in record} == record
+    shared = inspect.signature(lpvid.select).parameters
+    for name in ("validation", "gammas", "fixed", "tolerance"):
+        assert shared[name].default == record[name], name
+    # every argument of identify is in the record or is one it takes beside the problem
+    assert set(params) - set(record) == {"data", "progress", "executor"}
+    given = IdentifyArguments(tolerance=0.1, stable=True, routes=list(IdentifyArguments.routes))
+    assert given.given() == ["routes", "stable"]  # a list is not the default tuple
+
+
 def test_defaults_in_one_place_and_visible(small):
     data, _, basis = small
     s = lpvid.Problem(data, 2, basis).settings

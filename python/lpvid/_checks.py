@@ -12,6 +12,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+#: The axes of FRF arrays (G, sigma) and of scheduling points, as the errors name them.
+FRF_AXES = ("point", "line", "output", "input")
+POINT_AXES = ("point", "parameter")
+
 
 def real_array(
     value: Any,

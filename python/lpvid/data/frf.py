@@ -11,17 +11,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid._checks import complex_array, real_array, same_sample_time, sample_time
+from lpvid import _checks as checks
 from lpvid._files import mat_variables, npz_arrays, read_arrays, write_atomic
 from lpvid._rows import unique_rows
 from lpvid.data.schedule import scheduling_range
 from lpvid.readers import read_experiment
 
 __all__ = ["FrfData", "z_points"]
-
-#: The axes of G and sigma, and of p, as the errors name them.
-_G_AXES = ("point", "line", "output", "input")
-_P_AXES = ("point", "parameter")
 
 
 def z_points(freqs_hz: ArrayLike, Ts: float | None) -> NDArray[np.complex128]:
@@ -95,8 +91,8 @@ class FrfData:
         sigma: ArrayLike | float | None = None,
         Ts: float | None = None,
     ) -> None:
-        self.Ts = sample_time(Ts)
-        p_arr = real_array(p, "p", ndim=(1, 2), axes=_P_AXES)
+        self.Ts = checks.sample_time(Ts)
+        p_arr = checks.real_array(p, "p", ndim=(1, 2), axes=checks.POINT_AXES)
         if p_arr.shape[0] == 0:
             raise ValueError("p: needs at least one scheduling point")
         if p_arr.ndim == 2 and p_arr.shape[1] == 0:
@@ -104,7 +100,7 @@ class FrfData:
         rows = p_arr.reshape(p_arr.shape[0], -1)
         if len(unique_rows(rows)[0]) != rows.shape[0]:
             raise ValueError("p: scheduling values must be distinct (found a duplicate point)")
-        freqs = real_array(freqs_hz, "freqs_hz", ndim=1, axes=("line",))
+        freqs = checks.real_array(freqs_hz, "freqs_hz", ndim=1, axes=("line",))
         if freqs.size == 0:
             raise ValueError("freqs_hz: needs at least one frequency line")
         if np.any(freqs < 0):
@@ -116,7 +112,7 @@ class FrfData:
                 f"freqs_hz: {freqs[-1]:g} Hz is above the Nyquist frequency "
                 f"{0.5 / self.Ts:g} Hz of Ts={self.Ts:g} s"
             )
-        g = complex_array(G, "G", ndim=(2, 4), axes=_G_AXES)
+        g = checks.complex_array(G, "G", ndim=(2, 4), axes=checks.FRF_AXES)
         if g.ndim == 2:
             g = g[:, :, None, None]
         n_points, n_lines = p_arr.shape[0], freqs.size
@@ -130,7 +126,7 @@ class FrfData:
         if sigma is None:
             s = np.ones(g.shape)
         else:
-            s = real_array(sigma, "sigma", axes=_G_AXES)
+            s = checks.real_array(sigma, "sigma", axes=checks.FRF_AXES)
             if s.ndim == 0:
                 s = np.full(g.shape, float(s))
             elif s.ndim == 2 and g.shape[2:] == (1, 1):
@@ -261,7 +257,7 @@ class FrfData:
                 raise TypeError(f"parts[{i}]: expected FrfData, got {type(d).__name__}")
         first = items[0]
         for i, d in enumerate(items[1:], start=1):
-            if not same_sample_time(d.Ts, first.Ts):
+            if not checks.same_sample_time(d.Ts, first.Ts):
                 raise ValueError(f"parts[{i}]: Ts={d.Ts} differs from Ts={first.Ts} of parts[0]")
             if d.freqs_hz.shape != first.freqs_hz.shape or not np.allclose(
                 d.freqs_hz, first.freqs_hz, rtol=1e-12, atol=0.0
@@ -362,15 +358,15 @@ class FrfData:
         if missing:
             raise ValueError(f"path: {p.name} lacks the variables {', '.join(missing)}")
         G = np.asarray(raw["G"])
-        p_val = real_array(raw["p"], "p")
-        freqs = real_array(raw["freqs_hz"], "freqs_hz").ravel()
+        p_val = checks.real_array(raw["p"], "p")
+        freqs = checks.real_array(raw["freqs_hz"], "freqs_hz").ravel()
         if suffix == ".mat":
             # MATLAB stores vectors as 1 x N matrices.
             if p_val.ndim == 2 and 1 in p_val.shape and G.shape[0] == p_val.size:
                 p_val = p_val.ravel()
             if G.ndim == 4 and G.shape[0] == 1 and p_val.size == 1:
                 p_val = p_val.ravel()
-        ts = None if raw.get("Ts") is None else real_array(raw["Ts"], "Ts")
+        ts = None if raw.get("Ts") is None else checks.real_array(raw["Ts"], "Ts")
         if ts is not None and ts.size > 1:
             raise ValueError(f"Ts: expected one number (or none), got shape {ts.shape}")
         ts_val = None if ts is None or ts.size == 0 else float(ts.ravel()[0])

@@ -43,7 +43,7 @@ from lpvid.model.similarity import flat_at_points
 from lpvid.pipeline.result import PathEntry, path_entry
 from lpvid.trust.steps import stable_fit
 
-__all__ = ["path_mode", "run_path"]
+__all__ = ["Along", "path_mode", "run_path"]
 
 
 def path_mode(
@@ -87,20 +87,27 @@ def _judged(start: LpvModel, g: float, how: _Fit) -> tuple[L21Result, PathEntry]
     return r, entry
 
 
+@dataclass(frozen=True)
+class Along:
+    """What every path of one identify run shares, from whichever start it goes.
+
+    ``tolerance`` the choice's slack on the best validation V_NLS,
+    ``settings`` the l2,1 fits', ``say`` where progress goes, ``executor``
+    where a guarded path's pinned fits may run.
+    """
+
+    validation: FrfData | None
+    tolerance: float
+    settings: L21Settings
+    p_range: Any
+    stable: bool
+    time_cost: TimeCost | None
+    say: Callable[[str], Any]
+    executor: Executor | None = None
+
+
 def run_path(
-    nls: FitResult,
-    gammas: Sequence[float],
-    data: FrfData,
-    *,
-    validation: FrfData | None,
-    tolerance: float,
-    settings: L21Settings,
-    fixed: Any,
-    p_range: Any,
-    stable: bool,
-    time_cost: TimeCost | None,
-    say: Callable[[str], None],
-    executor: Executor | None = None,
+    nls: FitResult, gammas: Sequence[float], data: FrfData, fixed: Any, along: Along
 ) -> tuple[list[L21Result], list[PathEntry]]:
     """The path from ``nls`` over ``gammas`` (largest first): its fits and its entries.
 
@@ -117,8 +124,15 @@ def run_path(
     the warm fit's cone steps use (measured on two cores: the gantry's path
     1.0 -> 2.1 s, where no gamma needed it). The path is the same either way.
     """
+    validation, tolerance, settings, say = (
+        along.validation,
+        along.tolerance,
+        along.settings,
+        along.say,
+    )
+    p_range, stable, time_cost = along.p_range, along.stable, along.time_cost
     mode = path_mode(nls.model, data, validation, time_cost)
-    spread = Spread(executor)
+    spread = Spread(along.executor)
     if mode != "guarded" or not spread.elsewhere:
         spread = Spread(None)  # each fit here, when taken
     warm_fit = _Fit(data, settings, fixed, validation, p_range, stable=stable, time_cost=time_cost)

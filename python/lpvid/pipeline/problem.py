@@ -35,7 +35,7 @@ from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.capacity import check_order, zero_model
 
-__all__ = ["Problem", "check_scale", "check_validation", "problem_of"]
+__all__ = ["IdentifyArguments", "Problem", "check_scale", "check_validation"]
 
 
 def check_validation(data: FrfData, validation: Any) -> FrfData | None:
@@ -225,33 +225,73 @@ class Problem:
         )
 
 
-def problem_of(
-    data: FrfData,
-    order: int,
-    basis: Basis,
-    gammas: Any = None,
-    validation: FrfData | None = None,
-    fixed: Any = None,
-    *,
-    forms: Any = None,
-    routes: Any = ROUTES,
-    tolerance: float = 0.1,
-    settings: L21Settings | None = None,
-    time_data: Any = None,
-    stable: bool = False,
-    refit: bool = True,
-) -> Problem:
-    """The :class:`Problem` of :func:`lpvid.identify`'s own arguments.
+@dataclass(frozen=True)
+class IdentifyArguments:
+    """:func:`lpvid.identify`'s arguments that a :class:`Problem` holds, with their defaults.
 
-    ``settings`` (default ``L21Settings(max_outer=10)``, the default of
+    The one record of them: ``identify`` reads its own into it
+    (:meth:`of`), makes the problem from it (:meth:`problem`), and refuses
+    them beside a given :class:`Problem` (:meth:`refuse`), as
+    :func:`lpvid.select` does with the ones it shares. ``settings``
+    (default ``L21Settings(max_outer=10)``, the default of
     :class:`lpvid.fit.settings.PathSettings`) are those of the path's l2,1
-    fits. The starts' fits end by their own rule
+    fits; the starts' fits end by their own rule
     (:data:`lpvid.fit.settings.START_FTOL`; a :class:`Problem` with
     :class:`lpvid.fit.settings.StartSettings` sets another).
     """
-    l21 = L21Settings.of(PATH_L21 if settings is None else settings)
-    gs = DEFAULT_GAMMAS if gammas is None else gammas
-    path = PathSettings(gammas=gs, tolerance=tolerance, l21=l21)
-    starts = StartSettings(routes=routes, forms=forms)
-    chosen = IdentifySettings(path=path, starts=starts, stable=stable, refit=refit)
-    return Problem(data, order, basis, validation, fixed, time_data, settings=chosen)
+
+    order: Any = None
+    basis: Any = None
+    gammas: Any = None
+    validation: Any = None
+    fixed: Any = None
+    forms: Any = None
+    routes: Any = ROUTES
+    tolerance: float = 0.1
+    settings: Any = None
+    time_data: Any = None
+    stable: bool = False
+    refit: bool = True
+
+    @classmethod
+    def of(cls, arguments: dict[str, Any]) -> IdentifyArguments:
+        """The record of those of ``arguments`` (a call's ``locals()``) that it holds."""
+        return cls(
+            **{f.name: arguments[f.name] for f in dataclasses.fields(cls) if f.name in arguments}
+        )
+
+    def given(self) -> list[str]:
+        """The names of the arguments given (not left at their defaults), in the record's order."""
+        out = []
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if value is f.default or (f.default is not None and value == f.default):
+                continue
+            out.append(f.name)
+        return out
+
+    def refuse(self) -> None:
+        """Refuse every argument given: a :class:`Problem` was given, which holds them."""
+        given = self.given()
+        if given:
+            raise TypeError(
+                f"{', '.join(given)}: the problem holds these; give them to lpvid.Problem "
+                "(or problem.replace(...)), not beside it"
+            )
+
+    def problem(self, data: FrfData) -> Problem:
+        """The checked :class:`Problem` of ``data`` and these arguments."""
+        l21 = L21Settings.of(PATH_L21 if self.settings is None else self.settings)
+        gs = DEFAULT_GAMMAS if self.gammas is None else self.gammas
+        path = PathSettings(gammas=gs, tolerance=self.tolerance, l21=l21)
+        starts = StartSettings(routes=self.routes, forms=self.forms)
+        chosen = IdentifySettings(path=path, starts=starts, stable=self.stable, refit=self.refit)
+        return Problem(
+            data,
+            self.order,
+            self.basis,
+            self.validation,
+            self.fixed,
+            self.time_data,
+            settings=chosen,
+        )

@@ -10,8 +10,7 @@ the chosen structure open it follows other routes too
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Sequence
-from concurrent.futures import Executor
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,9 +19,7 @@ import numpy as np
 from lpvid.data.frf import FrfData
 from lpvid.fit.judge import noise_slack, tied
 from lpvid.fit.results import FitResult, L21Result
-from lpvid.fit.settings import L21Settings
-from lpvid.fit.timecost import TimeCost
-from lpvid.pipeline.path import run_path
+from lpvid.pipeline.path import Along, run_path
 from lpvid.pipeline.result import PathEntry
 from lpvid.trust.steps import stable_fit
 
@@ -76,20 +73,7 @@ class Route:
 
 
 def follow(
-    name: str,
-    nls: FitResult,
-    gammas: Sequence[float],
-    data: FrfData,
-    *,
-    validation: FrfData | None,
-    tolerance: float,
-    settings: L21Settings,
-    fixed: Any,
-    p_range: Any,
-    stable: bool,
-    time_cost: TimeCost | None,
-    say: Callable[[str], Any],
-    executor: Executor | None,
+    name: str, nls: FitResult, gammas: Sequence[float], data: FrfData, fixed: Any, along: Along
 ) -> Route:
     """The path from the refined start ``nls`` and the choice on it.
 
@@ -97,23 +81,11 @@ def follow(
     """
     with warnings.catch_warnings(record=True) as warned:
         warnings.simplefilter("always")
-        if stable:
-            nls = stable_fit(nls, data, fixed, settings.threshold, p_range, time_cost)
-        results, entries = run_path(
-            nls,
-            sorted(gammas, reverse=True),
-            data,
-            validation=validation,
-            tolerance=tolerance,
-            settings=settings,
-            fixed=fixed,
-            p_range=p_range,
-            stable=stable,
-            time_cost=time_cost,
-            say=say,
-            executor=executor,
-        )
-    chosen, reason = path_choice(entries, tolerance)
+        if along.stable:
+            threshold = along.settings.threshold
+            nls = stable_fit(nls, data, fixed, threshold, along.p_range, along.time_cost)
+        results, entries = run_path(nls, sorted(gammas, reverse=True), data, fixed, along)
+    chosen, reason = path_choice(entries, along.tolerance)
     return Route(name, nls, results, entries, chosen, reason, fixed, list(warned))
 
 

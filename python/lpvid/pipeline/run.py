@@ -31,7 +31,8 @@ from lpvid.initial.local import local_models
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.fewpoints import choose_route, open_between, open_routes
 from lpvid.pipeline.misfit import advice, misfit
-from lpvid.pipeline.problem import Problem, check_validation, problem_of
+from lpvid.pipeline.path import Along
+from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
 from lpvid.pipeline.result import IdentifyResult, PathEntry, path_entry
 from lpvid.pipeline.routes import follow
 from lpvid.trust.steps import finish
@@ -44,7 +45,6 @@ __all__ = [
     "check_gammas",
     "check_validation",
     "identify",
-    "refuse_beside",
 ]
 
 Progress = Callable[[str], Any]
@@ -232,58 +232,14 @@ def identify(
         growth (:func:`lpvid.fit.memory.pipeline_memory`).
     """
     t0 = time.perf_counter()
-    held = dict(
-        order=order,
-        basis=basis,
-        gammas=gammas,
-        validation=validation,
-        fixed=fixed,
-        forms=forms,
-        routes=routes,
-        tolerance=tolerance,
-        settings=settings,
-        time_data=time_data,
-        stable=stable,
-        refit=refit,
-    )
+    arguments = IdentifyArguments.of(locals())  # before any other local name
     if isinstance(data, Problem):
-        refuse_beside(**held)
+        arguments.refuse()
         problem = data
     else:
-        problem = problem_of(data, **held)
+        problem = arguments.problem(data)
     executor = check_executor(executor)
     return _run(problem, progress=progress, executor=executor, t0=t0)
-
-
-#: identify's arguments that a Problem holds, with their defaults.
-_HELD = dict(
-    order=None,
-    basis=None,
-    gammas=None,
-    validation=None,
-    fixed=None,
-    forms=None,
-    routes=ROUTES,
-    tolerance=0.1,
-    settings=None,
-    time_data=None,
-    stable=False,
-    refit=True,
-)
-
-
-def refuse_beside(**arguments: Any) -> None:
-    """Refuse the arguments a :class:`Problem` holds when one is given (each must be left out)."""
-    given = [
-        name
-        for name, value in arguments.items()
-        if value is not _HELD[name] and not (_HELD[name] is not None and value == _HELD[name])
-    ]
-    if given:
-        raise TypeError(
-            f"{', '.join(given)}: the problem holds these; give them to lpvid.Problem "
-            "(or problem.replace(...)), not beside it"
-        )
 
 
 def _run(
@@ -341,24 +297,17 @@ def _run(
 
     _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
-    along = dict(
-        validation=validation,
-        tolerance=tol,
-        settings=l21,
-        p_range=p_range,
-        stable=stable,
-        time_cost=time_cost,
-        say=lambda message: _say(progress, message),
-        executor=executor,
+    along = Along(
+        validation, tol, l21, p_range, stable, time_cost, lambda m: _say(progress, m), executor
     )
-    main = follow(start.name, nls, gs, data, fixed=fixed, **along)
+    main = follow(start.name, nls, gs, data, fixed, along)
     timings["path_s"] = time.perf_counter() - t
     t = time.perf_counter()
     routes, more, _ = open_routes(
         problem,
         main,
         local,
-        lambda c: follow(c.name, c.fit, gs, data, fixed=c.structure, **along),
+        lambda c: follow(c.name, c.fit, gs, data, c.structure, along),
         lambda message: _say(progress, message),
     )
     route_index, chosen, reason, members = choose_route(

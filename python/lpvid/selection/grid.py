@@ -33,9 +33,9 @@ from lpvid.fit.settings import DEFAULT_GAMMAS, IdentifySettings, PathSettings
 from lpvid.initial.orders import order_hints
 from lpvid.model.layout import fixed_mask
 from lpvid.pipeline.capacity import zero_model
-from lpvid.pipeline.problem import Problem, check_validation
+from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
 from lpvid.pipeline.result import IdentifyResult
-from lpvid.pipeline.run import identify, refuse_beside
+from lpvid.pipeline.run import identify
 from lpvid.selection.result import GridRow, SelectResult, basis_label, choose_pair, free_in_use
 from lpvid.selection.scales import log_grid
 
@@ -428,7 +428,10 @@ def select(
     """
     t0 = time.perf_counter()
     if isinstance(data, Problem):
-        refuse_beside(validation=validation, gammas=gammas, fixed=fixed, tolerance=tolerance)
+        shared_args = IdentifyArguments(
+            validation=validation, gammas=gammas, fixed=fixed, tolerance=tolerance
+        )
+        shared_args.refuse()
         problem = data
         data, validation, fixed = problem.data, problem.validation, problem.fixed
         ns, bs = _orders(orders), _bases(bases, data)
