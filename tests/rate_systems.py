@@ -25,6 +25,59 @@ obeys ``z' = (a I + (b - w) J + k E_1) z``: unstable when ``|b - w| <
 sqrt(k^2 - a^2)``. That scheduling is periodic, stays in the box and moves
 each ``s_k`` at most ``2 w`` per time unit: an instability witness, so a
 known *upper* bound of any rate certificate.
+
+**A known critical rate** (:func:`tilted`; the two constructions above
+bracket the rotation's certificate within a factor of almost 4 only): the
+nilpotent conjugation with ``A0 = [[-1, 1], [-1, -1]]`` (eigenvalues ``-1 +-
+i``), ``N = e_1 e_2^T``, one parameter on ``(-3, 3)``. Its critical rate
+lies in ``[NU_LO, NU_HI] = [4.7, 4.95]``, a factor 1.053, both ends proven
+below. Here ``z' = (A0 - v N) z`` with ``A0 - v N = [[-1, 1 - v], [-1,
+-1]]``: a saddle for ``v > 2``, a focus turning faster for ``v < 0``.
+
+*Upper bound: a sweep.* ``p`` goes from -3 to 3 at ``v = +NU_HI`` (for
+``TAU = 6 / NU_HI = 1.21`` time units) and back at ``v = -NU_HI``: the
+scheduling stays in the box, moves at ``|dp/dt| = NU_HI``, is periodic
+(period ``2 TAU``), and ``z`` gains ``M = expm((A0 + NU_HI N) TAU)
+expm((A0 - NU_HI N) TAU)`` per period, spectral radius 1.005 (the same
+sweep at 5.0 gives 1.020, at 4.9 0.990): on the way up the saddle
+stretches ``z``, on the way down the focus turns it by about half a turn
+back onto the stretched direction. ``x = T(p) z`` with ``p`` back at -3 after
+a period, so ``x``'s monodromy is ``T(-3) M T(-3)^-1``: unstable. (The
+first construction's ``A0`` has real eigenvalues and no turn, which is why
+sweeping it back and forth does not grow.)
+
+*Lower bound: a tilt.* A common ``P0`` of ``A0 -+ nu N`` (``q = 1`` below,
+degree 2) exists only for ``nu < 2`` (``A0 - 2 N`` has a zero eigenvalue),
+yet no scheduling that stays in the box holds ``v = 2`` for long. A
+Lyapunov function ``exp(lambda p) z^T Q0 z`` prices that: its derivative is
+that of ``z^T Q0 z`` for ``A0 - v N + (lambda v / 2) I``, so with ``lambda <
+0`` the saddle (``v > 0``) is damped and the focus (``v < 0``) pays for it.
+A polynomial stands in for the exponential: with ``V = q(p) z^T Q0 z``, i.e.
+``P(p) = q(p) (I - p N)^T Q0 (I - p N)`` (a polynomial of degree ``2 + deg
+q``),
+
+    dV/dt = q z^T [(A0 - v N)^T Q0 + Q0 (A0 - v N) + (q'/q) v Q0] z.
+
+The bracket is affine in ``v`` for each value of ``q'/q`` and affine in
+``q'/q`` for each ``v``: with ``LAMBDA_1 <= q'/q <= LAMBDA_2`` on the box,
+``q > 0`` and ``Q0 > 0``, it is negative on the box for every ``|v| <= nu``
+as soon as it is at the four corners ``v = +-nu``, ``q'/q = LAMBDA_1,
+LAMBDA_2``. ``TILT_Q`` (degree 4, so ``P`` of degree 6) keeps ``q'/q`` in
+``[-0.424, -0.412]`` on ``(-3, 3)`` (``q`` nearly ``exp(-0.418 p)``; found
+by a linear program on a grid, rounded, checked by the roots of ``q' -
+LAMBDA_1 q`` and ``LAMBDA_2 q - q'``), and ``Q0 = diag(1, 5.684)`` makes the
+four corners negative definite at ``nu = NU_LO = 4.7`` (smallest eigenvalue
+of their negatives 6e-4, the largest 26): a degree-6 certificate exists at
+4.7, so ``max_rate(..., degree=6)`` must find it up to the bisection's
+tolerance (the sums of squares are exact for one parameter).
+
+Measured beside, not used by the tests: with the exact ``exp(lambda p)`` a
+``Q0`` exists up to ``nu = 4.82`` (Shorten and Narendra's test for a pair of
+2 x 2 matrices, over ``lambda``), and the sweep is unstable from ``nu =
+4.93`` when its half period is chosen best (``nu TAU <= 6``), so the
+critical rate itself is known within 2.3 %; ``deg q = 2`` (``P`` of degree
+4) gives no ``nu`` above 3.5 this way. lpvid's certificate finds 2.56 with
+``P`` of degree 2, 4.60 with degree 4, 4.80 with degree 6 and with degree 8.
 """
 
 from __future__ import annotations
@@ -139,3 +192,85 @@ def sampled_worst(model: lpvid.LpvModel, cert, rng, count: int = 2000) -> float:
         )
         worst = min(worst, float(np.linalg.eigvalsh(-(A.T @ P + P @ A + dP)).min()))
     return worst
+
+
+TILT_A0 = np.array([[-1.0, 1.0], [-1.0, -1.0]])
+TILT_N = np.array([[0.0, 1.0], [0.0, 0.0]])
+#: The box of :func:`tilted` (the sweep of the witness goes from one end to the other).
+TILT_RANGE = (-3.0, 3.0)
+#: ``q(p) = sum_j TILT_Q[j] p^j``, nearly ``exp(-0.418 p)`` on the box (module notes).
+TILT_Q = (1.0, -0.417, 0.0905, -0.0137, 0.00116)
+#: Bounds of ``q'/q`` on the box.
+LAMBDA_1, LAMBDA_2 = -0.424, -0.412
+TILT_Q0 = np.diag([1.0, 5.684])
+#: The rate certified by ``P(p) = q(p) (I - p N)^T Q0 (I - p N)`` (degree 6).
+NU_LO = 4.7
+#: The rate of the unstable sweep (from one end of the box to the other and back).
+NU_HI = 4.95
+
+
+def tilted() -> lpvid.LpvModel:
+    """The model whose critical rate lies in ``[NU_LO, NU_HI]`` (module notes).
+
+    Returns
+    -------
+    LpvModel
+        ``A(p) = (I + p N) A0 (I - p N)`` on ``TILT_RANGE``, a Polynomial(2) basis.
+    """
+    return conjugated(TILT_A0, [TILT_N], [TILT_RANGE])[0]
+
+
+def tilted_P(p: float) -> tuple[np.ndarray, np.ndarray]:
+    """The explicit ``P(p)`` of the lower bound and its derivative ``dP/dp``.
+
+    Parameters
+    ----------
+    p : float
+        A scheduling value.
+
+    Returns
+    -------
+    P, dP : ndarray, shape (2, 2)
+        ``q(p) (I - p N)^T Q0 (I - p N)`` and its derivative in ``p``.
+    """
+    q = np.polynomial.Polynomial(TILT_Q)
+    Ti = np.eye(2) - p * TILT_N
+    core = Ti.T @ TILT_Q0 @ Ti
+    dcore = -(TILT_N.T @ TILT_Q0 @ Ti + Ti.T @ TILT_Q0 @ TILT_N)
+    return q(p) * core, q.deriv()(p) * core + q(p) * dcore
+
+
+def sweep_monodromy(model: lpvid.LpvModel, nu: float) -> np.ndarray:
+    """Monodromy of ``x' = A(p(t)) x`` over one period of the sweep of the box at rate ``nu``.
+
+    ``p`` goes from ``lo`` to ``hi`` at ``dp/dt = nu`` and back at ``-nu``
+    (a triangle wave that stays in the box), ``A(p)`` from the model itself;
+    integrated by ``scipy.integrate.solve_ivp`` (tolerances 1e-11).
+
+    Parameters
+    ----------
+    model : LpvModel
+        A model with one scheduling parameter.
+    nu : float
+        The rate ``|dp/dt|`` of the sweep.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``Phi`` with ``x(2 T) = Phi x(0)``, ``T = (hi - lo) / nu``.
+    """
+    from scipy.integrate import solve_ivp
+
+    (lo, hi), n = model.basis.domain[0], model.n_states
+    half = (hi - lo) / nu
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        p = lo + nu * t if t <= half else hi - nu * (t - half)
+        A = frozen_A(model, np.array([[p]]))[0]
+        return (A @ y.reshape(n, n)).ravel()
+
+    phi = np.eye(n).ravel()
+    for t0, t1 in ((0.0, half), (half, 2 * half)):  # the corner of p(t) at ``half``
+        sol = solve_ivp(rhs, (t0, t1), phi, rtol=1e-11, atol=1e-13, method="DOP853")
+        phi = sol.y[:, -1]
+    return phi.reshape(n, n)

@@ -6,8 +6,11 @@ in two (and three) parameters, where a periodic scheduling inside the box is uns
 (an upper bound, checked by simulating it). Between them, cvxpy on a dense grid of the
 same inequality, written with ``P`` a polynomial of the *physical* parameters (its own
 derivative, no chain rule), must be feasible at the certified rate and not at a rate a
-little above. Every certificate is resampled: the inequality's eigenvalues at random
-scheduling values and rate vertices, ``dP/dp`` by finite differences of ``P(p)``.
+little above. A third model has a critical rate known within a factor 1.053 (an
+explicit degree-6 ``P(p)`` below it, a resonant sweep of the box above): ``max_rate`` at
+degree 6 must land in between. Every certificate is resampled: the inequality's
+eigenvalues at random scheduling values and rate vertices, ``dP/dp`` by finite differences
+of ``P(p)``.
 """
 
 from __future__ import annotations
@@ -17,12 +20,25 @@ import itertools
 import numpy as np
 import pytest
 from rate_systems import (
+    LAMBDA_1,
+    LAMBDA_2,
+    NU_HI,
+    NU_LO,
+    TILT_A0,
+    TILT_N,
+    TILT_Q,
+    TILT_Q0,
+    TILT_RANGE,
     conjugated,
     grows_on_the_circle,
     rotating,
     sampled_worst,
+    sweep_monodromy,
+    tilted,
+    tilted_P,
     witness_rate,
 )
+from scipy.linalg import expm
 
 import lpvid
 from lpvid.model.frozen import frozen_A
@@ -84,6 +100,75 @@ def test_one_parameter_between_the_explicit_certificate_and_cvxpy(conj, rng):
     assert _grid_delta(conj, 1.1 * found.rate, 60) < 0
     assert sampled_worst(conj, found.certificate, rng, 1000) >= found.certificate.mu * (1 - 1e-6)
     assert found.certificate.mu > 0 and found.certificate.mu_p > 0
+
+
+@pytest.fixture(scope="module")
+def tilt():
+    return tilted()
+
+
+def _no_root_inside(c, lo, hi):
+    """A polynomial (coefficients ``c``, increasing powers) > 0 on [lo, hi], from its roots."""
+    poly = np.polynomial.Polynomial(c)
+    r = poly.roots()
+    inside = r[(np.abs(r.imag) < 1e-9) & (r.real >= lo) & (r.real <= hi)]
+    return inside.size == 0 and poly((lo + hi) / 2) > 0
+
+
+def test_the_known_critical_rate_is_bracketed(tilt):
+    """The bracket of rate_systems.tilted, independently of lpvid's certificate (numpy, scipy).
+
+    Below: ``P(p) = q(p) (I - p N)^T Q0 (I - p N)`` certifies NU_LO (the argument's four
+    corners and the bounds of q'/q, then the model's own inequality on a grid). Above: the
+    sweep of the box at NU_HI is unstable (its monodromy, integrated with the model's A(p)).
+    """
+    lo, hi = TILT_RANGE
+    assert NU_HI / NU_LO < 1.06
+    # the argument: Q0 > 0, the four corners negative definite, LAMBDA_1 <= q'/q <= LAMBDA_2
+    assert np.linalg.eigvalsh(TILT_Q0).min() > 0
+    for s in (1.0, -1.0):
+        M = TILT_A0 - s * NU_LO * TILT_N
+        for lam in (LAMBDA_1, LAMBDA_2):
+            L = M.T @ TILT_Q0 + TILT_Q0 @ M + lam * s * NU_LO * TILT_Q0
+            assert np.linalg.eigvalsh(-L).min() > 1e-4
+    q = np.polynomial.Polynomial(TILT_Q)
+    assert _no_root_inside(q.coef, lo, hi)
+    assert _no_root_inside((q.deriv() - LAMBDA_1 * q).coef, lo, hi)
+    assert _no_root_inside((LAMBDA_2 * q - q.deriv()).coef, lo, hi)
+    # the model's inequality with that P(p), on a grid (dP/dp checked by differences)
+    for p in np.linspace(lo, hi, 301):
+        P, dP = tilted_P(p)
+        fd = (tilted_P(p + 1e-6)[0] - tilted_P(p - 1e-6)[0]) / 2e-6
+        np.testing.assert_allclose(dP, fd, rtol=1e-6, atol=1e-7 * np.abs(P).max())
+        A = frozen_A(tilt, np.array([[p]]))[0]
+        assert np.linalg.eigvalsh(P).min() > 0
+        for v in (NU_LO, -NU_LO):
+            assert np.linalg.eigvalsh(-(A.T @ P + P @ A + v * dP)).min() > 0
+    # the witness: x' = A(p(t)) x along the sweep grows, and as the conjugation says
+    Phi = sweep_monodromy(tilt, NU_HI)
+    assert np.abs(np.linalg.eigvals(Phi)).max() > 1.003
+    tau = (hi - lo) / NU_HI
+    M = expm((TILT_A0 + NU_HI * TILT_N) * tau) @ expm((TILT_A0 - NU_HI * TILT_N) * tau)
+    np.testing.assert_allclose(
+        np.sort_complex(np.linalg.eigvals(Phi)), np.sort_complex(np.linalg.eigvals(M)), rtol=1e-7
+    )
+    # frozen-stable: every A(p) is similar to A0
+    assert lpvid.stability(tilt).stable
+
+
+def test_max_rate_lands_in_the_known_bracket(tilt, rng):
+    """Rejects a certificate that is unsound (above the unstable sweep: a rate term dropped,
+    weakened or taken at one rate vertex only, a halved chain rule) or too conservative
+    (below an explicit degree-6 P(p): a doubled chain rule, a rate term counted twice)."""
+    tol = 0.02
+    found = lpvid.max_rate(tilt, degree=6, rel_tol=tol)
+    assert NU_LO / (1 + tol) <= found.rate[0] <= NU_HI
+    cert = found.certificate
+    assert cert.degree == 6 and cert.mu > 0 and cert.mu_p > 0
+    assert sampled_worst(tilt, cert, rng, 500) >= cert.mu * (1 - 1e-6)
+    # the ends themselves, without the bisection
+    assert lpvid.rate_stability(tilt, NU_LO, degree=6)[0] is True
+    assert lpvid.rate_stability(tilt, NU_HI, degree=6)[0] is None
 
 
 def test_one_parameter_fixed_rates(conj):
