@@ -166,6 +166,8 @@ def test_max_rate_lands_in_the_known_bracket(tilt, rng):
     cert = found.certificate
     assert cert.degree == 6 and cert.mu > 0 and cert.mu_p > 0
     assert sampled_worst(tilt, cert, rng, 500) >= cert.mu * (1 - 1e-6)
+    # the bisection's promise: a factor 1 + rel_tol above the rate found is not certified
+    assert lpvid.rate_stability(tilt, found.rate[0] * (1 + tol), degree=6)[0] is not True
     # the ends themselves, without the bisection
     assert lpvid.rate_stability(tilt, NU_LO, degree=6)[0] is True
     assert lpvid.rate_stability(tilt, NU_HI, degree=6)[0] is None
