@@ -24,7 +24,7 @@
 //! refinement against the dense Hessian changed nothing there, and was
 //! left out).
 
-use super::newton::NewtonGroup;
+use super::group::NewtonGroup;
 use crate::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
 use crate::point_factors::PointFactors;
