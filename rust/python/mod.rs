@@ -35,10 +35,10 @@ pyo3::create_exception!(
 const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARGET_FEATURES"), ";");
 
 /// The route of the core's hand-written vector code that this process runs
-/// (`"avx512"`, `"avx2"` or `"portable"`; [`crate::route`]).
+/// (`"avx512"`, `"avx2"` or `"portable"`; [`crate::base::route`]).
 #[pyfunction]
 fn kernel_route() -> &'static str {
-    crate::route::Route::current().name()
+    crate::base::route::Route::current().name()
 }
 
 /// The compiled core of lpvid (private: use the `lpvid` package).
@@ -49,7 +49,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     crate::memory::blocks::system_heaps();
     // faer's calls that are not told their parallelism run on one thread:
     // some of them sum in another order on another number of threads (see
-    // `crate::dense`), and no result may depend on the machine's cores.
+    // `crate::base::dense`), and no result may depend on the machine's cores.
     faer::set_global_parallelism(faer::Par::Seq);
     // The package version, from Cargo.toml (lpvid.__version__).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -35,7 +35,7 @@ use super::factored::FactoredHessian;
 use super::group::{dot, NewtonGroup};
 use super::packed::Quadratic;
 use super::{ConeGroup, ConeProblem};
-use crate::dense::{cholesky_solve, factor_lower};
+use crate::base::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
 use faer::{Mat, MatRef};
 
