@@ -7,6 +7,7 @@ mod memory_py;
 mod model_py;
 mod outcome_py;
 mod problem_py;
+mod settings_py;
 mod simulate_py;
 mod time_py;
 mod trust_py;
@@ -62,6 +63,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model_py::PyModelView>()?;
     problem_py::register(m)?;
     fit_py::register(m)?;
+    settings_py::register(m)?;
     memory_py::register(m)?;
     simulate_py::register(m)?;
     time_py::register(m)?;
