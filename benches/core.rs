@@ -56,13 +56,13 @@ fn bench_steps(c: &mut Criterion) {
     let (problem, theta) = gantry_problem();
     let free = FreeSet::all(theta.len());
     let gn = problem.gauss_newton(&theta, &free).expect("gn");
-    let diag = lpvid::lm::marquardt_diagonal(&gn);
+    let diag = lpvid::fit::lm::marquardt_diagonal(&gn);
     let mu = 1e-4;
     c.bench_function(
         "gantry: LM iteration (step, J^T J and V_NLS at the new point)",
         |b| {
             b.iter(|| {
-                let d = lpvid::lm::lm_step(&gn, &diag, mu)
+                let d = lpvid::fit::lm::lm_step(&gn, &diag, mu)
                     .expect("memory")
                     .expect("step");
                 let trial = free.add_step(&theta, &d);
@@ -71,7 +71,7 @@ fn bench_steps(c: &mut Criterion) {
         },
     );
     c.bench_function("gantry: LM step solve only (Cholesky)", |b| {
-        b.iter(|| black_box(lpvid::lm::lm_step(&gn, &diag, mu)))
+        b.iter(|| black_box(lpvid::fit::lm::lm_step(&gn, &diag, mu)))
     });
     let sup = vec![1.0; 4];
     let settings = lpvid::L21Settings::default();

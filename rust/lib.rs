@@ -7,29 +7,14 @@
 
 #![warn(missing_docs)]
 
-pub mod data;
-pub mod dense;
+pub mod base;
 pub mod error;
+pub mod eval;
 pub mod fit;
-pub mod gram_product;
-pub mod kron_gram;
 pub mod l21;
-pub mod lanes;
-pub mod layout;
-pub mod lm;
-pub mod lti;
 pub mod memory;
-pub mod objective;
-pub mod point_factors;
-pub mod point_sums;
-pub mod problem;
-pub mod response;
-pub mod route;
-pub mod sensitivity;
 pub mod simulate;
 pub mod socp;
-pub mod stable;
-pub mod sum;
 #[doc(hidden)]
 pub mod testing;
 pub mod time;
@@ -37,15 +22,15 @@ pub mod time;
 #[cfg(feature = "python")]
 mod python;
 
-pub use data::FrfData;
+pub use base::data::FrfData;
+pub use base::layout::{FreeSet, Group, Matrix, Shape};
 pub use error::{Error, Result};
+pub use eval::objective::{GaussNewton, Objective};
+pub use eval::problem::Problem;
+pub use eval::response::frequency_response;
+pub use eval::sum::Sum;
+pub use fit::lm::{levenberg_marquardt, LmSettings};
+pub use fit::stable::{FrozenRange, Stable};
 pub use fit::{Fit, Iteration, Monitor, Silent, StepKind, Stop};
 pub use l21::{fit_l21, l21_path, L21Settings, Weighting};
-pub use layout::{FreeSet, Group, Matrix, Shape};
-pub use lm::{levenberg_marquardt, LmSettings};
-pub use objective::{GaussNewton, Objective};
-pub use problem::Problem;
-pub use response::frequency_response;
-pub use stable::{FrozenRange, Stable};
-pub use sum::Sum;
 pub use time::{InitialState, Record, TimeProblem};

@@ -1,6 +1,6 @@
 //! Deterministic numbers for tests and benchmarks (not part of the API).
 
-use crate::layout::{Matrix, Shape};
+use crate::base::layout::{Matrix, Shape};
 use crate::time::Record;
 
 /// A linear congruential generator: uniform numbers in `[-0.5, 0.5)`,
@@ -78,10 +78,10 @@ pub use counting::{expected_calls, Counted};
 /// Counting a fit's evaluations (the optimisers' tests).
 #[cfg(test)]
 mod counting {
+    use crate::base::layout::{FreeSet, Shape};
     use crate::error::Result;
+    use crate::eval::objective::{GaussNewton, Objective};
     use crate::fit::Iteration;
-    use crate::layout::{FreeSet, Shape};
-    use crate::objective::{GaussNewton, Objective};
     use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
     /// An objective that counts its evaluations: of the cost alone and of

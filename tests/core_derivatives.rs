@@ -162,7 +162,7 @@ fn singular_model_is_an_error_not_a_panic() {
 /// `J^T J` and `J^T r` (all parameters free) against the same sums over the
 /// rows of the explicit complex Jacobian of `sensitivity::lti_jacobian`, to
 /// rounding: the Gram matrix comes from the Kronecker structure of the rows
-/// (`lpvid::kron_gram`), grouped by outputs when `l <= r` and by inputs
+/// (`lpvid::eval::kron_gram`), grouped by outputs when `l <= r` and by inputs
 /// otherwise, over batches of lines that do not fill the last one.
 fn check_against_rows(n: usize, r: usize, l: usize, nb: usize, discrete: bool) {
     let (p, theta) = problem(n, r, l, nb, discrete);
@@ -176,7 +176,8 @@ fn check_rows_of(p: &Problem, theta: &[f64]) {
     let data = p.data();
     let n_points = data.n_points();
     let basis: Vec<f64> = (0..n_points).flat_map(|q| p.psi(q)[1..].to_vec()).collect();
-    let jac = lpvid::sensitivity::lti_jacobian(&shape, theta, &basis, n_points, data.z()).unwrap();
+    let jac =
+        lpvid::eval::sensitivity::lti_jacobian(&shape, theta, &basis, n_points, data.z()).unwrap();
     let e = p.residual(theta).unwrap();
     let lti = shape.lti_len();
     let rows = e.len();
@@ -286,7 +287,7 @@ fn gram_matches_the_rows_of_the_jacobian_over_several_tasks_a_point() {
 fn the_response_of_a_sum_is_that_of_its_parts_one_after_the_other() {
     let (a, theta) = problem(2, 1, 2, 1, true);
     let (b, _) = problem(2, 1, 2, 1, false);
-    let sum = lpvid::sum::Sum::new(vec![&a, &b]).unwrap();
+    let sum = lpvid::eval::sum::Sum::new(vec![&a, &b]).unwrap();
     let mut want = Objective::response(&a, &theta).unwrap();
     want.extend(Objective::response(&b, &theta).unwrap());
     let got = sum.response(&theta).unwrap();
@@ -307,7 +308,7 @@ fn the_cost_is_the_vnls_of_the_gauss_newton_pieces_to_the_last_bit() {
         let free = FreeSet::from_mask(&mask);
         let gn = p.gauss_newton(&theta, &free).unwrap();
         assert_eq!(p.cost(&theta).unwrap().to_bits(), gn.vnls.to_bits());
-        let sum = lpvid::sum::Sum::new(vec![&p, &other]).unwrap();
+        let sum = lpvid::eval::sum::Sum::new(vec![&p, &other]).unwrap();
         let total = Objective::gauss_newton(&sum, &theta, &free).unwrap();
         assert_eq!(sum.cost(&theta).unwrap().to_bits(), total.vnls.to_bits());
     }

@@ -4,8 +4,8 @@
 //! the similarity transformations leave, and the same fit on any number
 //! of threads.
 
+use lpvid::fit::lm::{lm_step, marquardt_diagonal, LmSystem};
 use lpvid::l21::cone_groups;
-use lpvid::lm::{lm_step, marquardt_diagonal, LmSystem};
 use lpvid::socp::{ConeProblem, ConeSolver, ConeStep};
 use lpvid::testing::{on_threads, relative_gap, Lcg};
 use lpvid::{

@@ -1,11 +1,11 @@
-//! Memory of the fits: the estimate of `lpvid::memory::estimate` against
+//! Memory of the fits: the estimate of `lpvid::fit::estimate` against
 //! the peak that a counting allocator measures, and the fallible
 //! allocations of a fit made to fail one after the other (an error naming
 //! the size every time, never a panic or an abort).
 //!
 //! The tests of this file share the allocator's counters: they take a lock.
 
-use lpvid::memory::estimate::{FitSizes, Method, TimeSizes};
+use lpvid::fit::estimate::{FitSizes, Method, TimeSizes};
 use lpvid::memory::{allocation_failure_pending, fail_allocation_after, guarded_allocation};
 use lpvid::testing::Lcg;
 use lpvid::{

@@ -210,3 +210,90 @@ def test_a_readme_without_a_map_fails(tmp_path, capsys):
     root = _project(tmp_path, {"a.py": ""}, readme="# p\n")
     assert house.main([str(root)]) == 1
     assert "package map: README.md has no map" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- the Rust map
+
+_CRATE = {
+    "lib.rs": (
+        "pub mod base;\npub mod error;\npub mod eval;\npub mod fit;\n"
+        "pub use eval::problem::Problem;\n"
+    ),
+    "error.rs": "pub struct Error;\n",
+    "base/mod.rs": "pub mod layout;\n",
+    "base/layout.rs": "use crate::error::Error;\n// crate::fit is only named in a comment\n",
+    "eval/mod.rs": "pub mod problem;\n",
+    "eval/problem.rs": (
+        "use crate::{base::layout, error::Error};\n"
+        'const S: &str = "crate::fit::lm";\n'
+        "#[cfg(test)]\nmod tests {\n    fn f() { let _ = crate::base::layout::X; }\n}\n"
+    ),
+    "fit/mod.rs": "use crate::Problem;\npub fn f() { crate::base::layout::g(); }\n",
+}
+
+
+def _rust_readme(rows: dict[str, str]) -> str:
+    """A README mapping the Python folder ``sub/``, and a Rust map ``{folder: may-use cell}``."""
+    lines = [
+        _readme({"sub": "(helpers only)"}),
+        house.RUST_MAP_MARK,
+        "| folder | what it holds | may use |",
+        "|---|---|---|",
+    ]
+    lines += [f"| `{folder}/` | things | {cell} |" for folder, cell in rows.items()]
+    return "\n".join([*lines, ""])
+
+
+def _crate(root: Path, files: dict[str, str], rows: dict[str, str]) -> Path:
+    """A project of one Python folder, the crate ``files`` in rust/ and a Rust map of ``rows``."""
+    _project(root, {"sub/__init__.py": ""}, _rust_readme(rows))
+    for name, text in files.items():
+        path = root / "rust" / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    return root
+
+
+def test_the_crate_paths_are_read_outside_comments_and_strings():
+    source = (
+        "use crate::{a::{b, c}, d};\n// crate::comment\n/* crate::block */\n"
+        'let s = "crate::string"; let q = \'"\'; crate::e::f(); x = crate :: g;\n'
+    )
+    assert house.rust_uses(source) == {"a", "d", "e", "g"}
+
+
+def test_a_crate_whose_uses_the_map_allows_passes(tmp_path, capsys):
+    rows = {"base": "(errors only)", "eval": "`base/`", "fit": "`eval/`, `base/`"}
+    root = _crate(tmp_path, _CRATE, rows)
+    # fit/ uses crate::Problem, a re-export of eval/.
+    assert house.rust_use_graph(root / "rust")["fit/mod.rs"] == {"eval", "base"}
+    assert house.main([str(root)]) == 0, capsys.readouterr().out
+    assert "0 Rust map error(s)" in capsys.readouterr().out
+
+
+def test_a_missing_folder_row_and_an_unlisted_use_fail(tmp_path, capsys):
+    rows = {"base": "(errors only)", "fit": "`base/`", "gone": "(errors only)"}
+    root = _crate(tmp_path, _CRATE, rows)
+    assert house.main([str(root)]) == 1
+    out = capsys.readouterr().out
+    assert "rust map: rust/eval/ has no row in README.md's Rust map" in out
+    assert "rust map: README.md's Rust map names gone/, which is not a folder of rust" in out
+    assert (
+        "rust map: rust/fit/mod.rs uses crate::eval, but the map does not let fit/ use eval/"
+    ) in out
+    assert "3 Rust map error(s)" in out
+
+
+def test_folders_that_use_each_other_in_a_circle_fail(tmp_path, capsys):
+    files = {**_CRATE, "base/layout.rs": "use crate::fit::f;\n"}
+    rows = {"base": "`fit/`", "eval": "`base/`", "fit": "`eval/`, `base/`"}
+    root = _crate(tmp_path, files, rows)
+    assert house.main([str(root)]) == 1
+    assert "rust map: folders in a circle: base -> fit -> base" in capsys.readouterr().out
+
+
+def test_a_crate_with_folders_needs_a_rust_map(tmp_path, capsys):
+    root = _crate(tmp_path, _CRATE, {})
+    (root / "README.md").write_text(_readme({"sub": "(helpers only)"}))
+    assert house.main([str(root)]) == 1
+    assert "rust map: README.md has no Rust map" in capsys.readouterr().out

@@ -171,3 +171,22 @@ def test_core_fits_return_typed_read_only_outcomes(case):
     assert isinstance(path, _core.PathOutcome) and len(path) == 2
     assert path.gammas == gammas.tolist()
     assert all(isinstance(f, _core.FitOutcome) for f in path.fits)
+
+
+def test_core_fit_settings_name_a_bad_key(case):
+    """The settings dicts: an unknown key, a value of the wrong type or out of range is named."""
+    start, data = case
+    problem = build_problem(start, data)
+    sup = start.basis.sup_norms((0.0, 1.0))
+    with pytest.raises(ValueError, match="unknown setting 'gamma'"):
+        _core.fit_nls(problem, start.theta, None, {"gamma": 1.0})
+    with pytest.raises(ValueError, match="xtol: has the wrong type"):
+        _core.fit_nls(problem, start.theta, None, {"xtol": "small"})
+    with pytest.raises(ValueError, match="lambda0"):
+        _core.fit_nls(problem, start.theta, None, {"lambda0": -1.0})
+    with pytest.raises(ValueError, match="weights: expected 'relative', 'scaled' or 'plain'"):
+        _core.fit_l21(problem, start.theta, sup, None, {"weights": "other"})
+    with pytest.raises(ValueError, match="max_outer: has the wrong type"):
+        _core.l21_path(problem, start.theta, sup, np.array([1e-2]), None, {"max_outer": 1.5})
+    with pytest.raises(TypeError, match="settings"):
+        _core.cone_step(problem, start.theta, sup, None, [("gamma", 1.0)], 1.0)

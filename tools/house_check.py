@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""The house check of lpvid: no import cycle among its modules, no long source file.
+"""The house check of lpvid: no import cycle, no long source file, true maps of the folders.
 
 Usage::
 
     python3 tools/house_check.py [PROJECT_ROOT]    (default: the current directory)
 
-Two rules, both about how the code is laid out rather than what it does:
+Four rules, all about how the code is laid out rather than what it does:
 
 - **No import cycle** among the modules of ``python/lpvid``. Every import
   counts: at module level, inside a function (a deferred import), and under
@@ -29,6 +29,17 @@ Two rules, both about how the code is laid out rather than what it does:
   module such as ``lpvid.testing``, or ``lpvid`` itself) must be listed
   there. The private top-level modules (``lpvid._*``) and ``lpvid.errors``
   may be imported from anywhere.
+- **The README's Rust map is true**: the table below the line
+  :data:`RUST_MAP_MARK` has one row per folder of ``rust/`` (a top-level
+  module of the crate; its subfolders belong to it), and its last column
+  names the other folders its files may ``use``: every path ``crate::x``
+  in a file of one folder (outside comments and strings; ``use`` lines,
+  paths in code and the files' tests alike) that leads into another folder
+  must be listed there, and the folders may not use each other in a circle.
+  A name the crate root re-exports (``crate::Problem``) counts as the
+  folder it comes from; the modules at the root of ``rust/`` named in
+  :data:`RUST_FREE` (the errors, the test helpers) may be used from
+  anywhere. Checked when ``rust/`` has folders.
 
 Prints every cycle (the modules of one strongly connected component of the
 import graph, with one closed path through them) and every long file, then a
@@ -56,6 +67,10 @@ __all__ = [
     "package_map",
     "module_names",
     "one_cycle",
+    "rust_folders",
+    "rust_map_breaks",
+    "rust_uses",
+    "rust_use_graph",
 ]
 
 #: Most lines a source file may have.
@@ -66,6 +81,20 @@ MAP_MARK = "<!-- package map: tools/house_check.py keeps it true -->"
 
 #: Top-level modules every folder may import without listing them.
 FREE = re.compile(r"^lpvid\.(_[A-Za-z0-9_]*|errors)$")
+
+#: The line of README.md right above the Rust map's table.
+RUST_MAP_MARK = "<!-- rust map: tools/house_check.py keeps it true -->"
+
+#: Modules at the root of rust/ that every folder may use without listing
+#: them: the typed errors and the test helpers (used by tests only).
+RUST_FREE = frozenset({"error", "testing"})
+
+#: What a Rust source says outside its comments and literals: comments,
+#: strings (raw ones too) and char literals, matched left to right.
+_RUST_NOISE = re.compile(
+    r"//[^\n]*|/\*.*?\*/|r(#*)\".*?\"\1|b?\"(?:\\.|[^\"\\])*\"|b?'(?:\\.|[^'\\\n])'",
+    re.S,
+)
 
 
 def module_names(package: Path) -> dict[str, Path]:
@@ -297,13 +326,16 @@ def long_files(root: Path, limit: int = LIMIT) -> list[tuple[Path, int]]:
     return out
 
 
-def package_map(readme: str) -> dict[str, set[str]] | None:
+def package_map(readme: str, mark: str = MAP_MARK) -> dict[str, set[str]] | None:
     """The README's package map: each folder with what it may import.
 
     Parameters
     ----------
     readme : str
         The text of ``README.md``.
+    mark : str
+        The line right above the table: :data:`MAP_MARK` for the Python
+        package's map, :data:`RUST_MAP_MARK` for the Rust crate's.
 
     Returns
     -------
@@ -315,10 +347,10 @@ def package_map(readme: str) -> dict[str, set[str]] | None:
         the README has no map.
     """
     lines = readme.splitlines()
-    if MAP_MARK not in lines:
+    if mark not in lines:
         return None
     found: dict[str, set[str]] = {}
-    for line in lines[lines.index(MAP_MARK) + 1 :]:
+    for line in lines[lines.index(mark) + 1 :]:
         if not line.startswith("|"):
             if found:
                 break
@@ -388,6 +420,133 @@ def map_breaks(
     return sorted(set(breaks))
 
 
+def rust_uses(source: str) -> set[str]:
+    """The first names of the ``crate::`` paths of one Rust source.
+
+    Parameters
+    ----------
+    source : str
+        The text of a ``.rs`` file.
+
+    Returns
+    -------
+    set of str
+        For every ``crate::x...`` outside comments, strings and char
+        literals: ``x``; for a group ``crate::{x::a, y}``: ``x`` and ``y``.
+    """
+    code = _RUST_NOISE.sub(lambda m: '""' if m.group(0).endswith('"') else " ", source)
+    found: set[str] = set()
+    for match in re.finditer(r"\bcrate\s*::\s*", code):
+        at = match.end()
+        if code.startswith("{", at):
+            depth, item, items = 0, "", []
+            for char in code[at:]:
+                depth += (char == "{") - (char == "}")
+                if depth == 0:
+                    break
+                if depth == 1 and char == ",":
+                    items.append(item)
+                    item = ""
+                elif depth >= 1 and not (depth == 1 and char == "{"):
+                    item += char
+            items.append(item)
+            found.update(m.group(1) for i in items if (m := re.match(r"\s*(\w+)", i)))
+        elif name := re.match(r"\w+", code[at:]):
+            found.add(name.group(0))
+    return found
+
+
+def _reexports(lib: str) -> dict[str, str]:
+    """The names ``lib.rs`` re-exports (``pub use x::...::Name``), each with its module ``x``."""
+    code = _RUST_NOISE.sub(" ", lib)
+    found: dict[str, str] = {}
+    for module, rest in re.findall(r"\bpub\s+use\s+(\w+)\s*::([^;]*);", code):
+        tail = rest[rest.index("{") :] if "{" in rest else rest.rsplit("::", 1)[-1]
+        for name in re.findall(r"\w+", tail):
+            found.setdefault(name, module)
+    return found
+
+
+def rust_folders(crate: Path) -> list[str]:
+    """The folders of a Rust crate's source directory (``rust/``), by name."""
+    return sorted(p.name for p in crate.iterdir() if p.is_dir() and any(p.rglob("*.rs")))
+
+
+def rust_use_graph(crate: Path) -> dict[str, set[str]]:
+    """Each source file of the crate with the top-level modules it uses.
+
+    Parameters
+    ----------
+    crate : Path
+        The crate's source directory (``rust/``, holding ``lib.rs``).
+
+    Returns
+    -------
+    dict of str to set of str
+        File (relative to ``crate``, with ``/``) to the crate's top-level
+        modules named by its ``crate::`` paths (:func:`rust_uses`), a name
+        re-exported by ``lib.rs`` replaced by the module it comes from.
+    """
+    lib = crate / "lib.rs"
+    reexported = _reexports(lib.read_text(encoding="utf-8")) if lib.is_file() else {}
+    return {
+        path.relative_to(crate).as_posix(): {
+            reexported.get(name, name) for name in rust_uses(path.read_text(encoding="utf-8"))
+        }
+        for path in sorted(crate.rglob("*.rs"))
+    }
+
+
+def rust_map_breaks(
+    graph: Mapping[str, Iterable[str]], folders: Iterable[str], the_map: Mapping[str, set[str]]
+) -> list[str]:
+    """What the README's Rust map gets wrong about the crate's ``crate::`` paths.
+
+    Parameters
+    ----------
+    graph : mapping of str to iterable of str
+        The crate's files with the top-level modules they use
+        (:func:`rust_use_graph`).
+    folders : iterable of str
+        The folders of ``rust/`` (:func:`rust_folders`).
+    the_map : mapping of str to set of str
+        The map (:func:`package_map` with :data:`RUST_MAP_MARK`).
+
+    Returns
+    -------
+    list of str
+        One line per folder missing from the map or named by it but absent,
+        per use the map does not allow, and per circle of folders that use
+        each other (see the module's docstring), sorted.
+    """
+    folders = set(folders)
+    breaks = [
+        f"rust map: rust/{f}/ has no row in README.md's Rust map" for f in folders - set(the_map)
+    ]
+    breaks += [
+        f"rust map: README.md's Rust map names {f}/, which is not a folder of rust"
+        for f in set(the_map) - folders
+    ]
+    between: dict[str, set[str]] = {f: set() for f in folders}
+    for path, used in graph.items():
+        here = path.split("/")[0]
+        if here not in folders:
+            continue
+        for there in sorted(set(used) - RUST_FREE - {here}):
+            between[here].add(there)
+            if here in the_map and there not in the_map[here]:
+                what = f"{there}/" if there in folders else there
+                breaks.append(
+                    f"rust map: rust/{path} uses crate::{there}, "
+                    f"but the map does not let {here}/ use {what}"
+                )
+    for component in cycles(between):
+        breaks.append(
+            f"rust map: folders in a circle: {' -> '.join(one_cycle(between, component))}"
+        )
+    return sorted(set(breaks))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Check a project and print what breaks the house rules.
 
@@ -400,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        0 when there is no cycle, no long file and the map is true, 1 otherwise.
+        0 when there is no cycle, no long file and both maps are true, 1 otherwise.
     """
     args = sys.argv[1:] if argv is None else argv
     root = Path(args[0] if args else ".").resolve()
@@ -426,11 +585,27 @@ def main(argv: list[str] | None = None) -> int:
         breaks = map_breaks(graph, folders, the_map)
     for line in breaks:
         print(line)
+    rust_breaks = _rust_breaks(root, readme)
+    for line in rust_breaks:
+        print(line)
     print(
         f"house: {len(found)} import cycle(s), {len(long)} file(s) over {LIMIT} lines, "
-        f"{len(breaks)} package map error(s)"
+        f"{len(breaks)} package map error(s), {len(rust_breaks)} Rust map error(s)"
     )
-    return 1 if found or long or breaks else 0
+    return 1 if found or long or breaks or rust_breaks else 0
+
+
+def _rust_breaks(root: Path, readme: Path) -> list[str]:
+    """The Rust map's breaks (:func:`rust_map_breaks`); none when ``rust/`` has no folder."""
+    crate = root / "rust"
+    folders = rust_folders(crate) if crate.is_dir() else []
+    if not folders:
+        return []
+    text = readme.read_text(encoding="utf-8") if readme.is_file() else ""
+    the_map = package_map(text, RUST_MAP_MARK)
+    if the_map is None:
+        return [f"rust map: README.md has no Rust map (the line {RUST_MAP_MARK!r} above a table)"]
+    return rust_map_breaks(rust_use_graph(crate), folders, the_map)
 
 
 if __name__ == "__main__":

@@ -9,8 +9,8 @@ Python (mutmut 3.8.1, ``pip install mutmut==3.8.1`` into the venv that has lpvid
 
 Rust (cargo-mutants, ``cargo install cargo-mutants``)::
 
-    python tools/mutation.py rust rust/lm.rs                    # its fast cargo tests
-    python tools/mutation.py rust rust/lm.rs -- --test core_optimisers
+    python tools/mutation.py rust rust/fit/lm.rs                # its fast cargo tests
+    python tools/mutation.py rust rust/fit/lm.rs -- --test core_optimisers
 
 Each run prints the killed / total per module and the survivors (``--show``:
 with their diffs). Python modules are copied with their tests to a staging
@@ -83,8 +83,8 @@ PY_TESTS = {
 
 #: The cargo test targets that exercise each Rust file (fast ones first).
 RUST_TESTS = {
-    "rust/lm.rs": ["--test", "core_optimisers", "--lib"],
-    "rust/fit.rs": ["--test", "core_optimisers", "--lib"],
+    "rust/fit/lm.rs": ["--test", "core_optimisers", "--lib"],
+    "rust/fit/mod.rs": ["--test", "core_optimisers", "--lib"],
     "rust/l21/mod.rs": ["--test", "core_optimisers", "--lib"],
     "rust/socp/": ["--test", "core_optimisers", "--lib"],
 }
@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         help="with --stage: run only the survivors again, against the current tests",
     )
     r = sub.add_parser("rust", help="cargo-mutants on Rust files of the core")
-    r.add_argument("files", nargs="+", help="e.g. rust/lm.rs rust/socp/mod.rs")
+    r.add_argument("files", nargs="+", help="e.g. rust/fit/lm.rs rust/socp/mod.rs")
     r.add_argument("--stage", help="output directory of cargo-mutants")
     r.add_argument("--jobs", type=int, default=1)
     parser.epilog = "rust: arguments after -- go to cargo test (default: the file's fast tests)"

@@ -13,7 +13,7 @@ Extensions numpy does not report (``xsave``, ``fxsr``, ...) are not checked.
 Importing this module makes the check; ``lpvid/__init__.py`` imports it first.
 
 It also checks the route switch ``LPVID_KERNEL`` (``auto``, ``avx512``,
-``avx2``, ``portable``; ``rust/route.rs``): the core's hand-written vector
+``avx2``, ``portable``; ``rust/base/route.rs``): the core's hand-written vector
 code runs the processor's widest route unless the variable asks for a
 narrower one, so that the route of a processor without AVX-512 can be run
 and tested on one with it. An unknown name, or a route this processor

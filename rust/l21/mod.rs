@@ -6,15 +6,15 @@
 //! relative weights (23), every group in use costs about `gamma`, and a group
 //! is kept when it lowers `V_NLS` by more than about `gamma M`.
 
+use crate::base::layout::{FreeSet, Shape};
 use crate::error::{invalid, Result};
+use crate::eval::objective::Objective;
+use crate::fit::lm::{
+    evaluate_trial, levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings,
+};
 use crate::fit::{
     check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
 };
-use crate::layout::{FreeSet, Shape};
-use crate::lm::{
-    evaluate_trial, levenberg_marquardt, marquardt_diagonal, predicted_decrease, LmSettings,
-};
-use crate::objective::Objective;
 use crate::socp::{jacobi_scale, ConeGroup, ConeProblem, ConeSolver, Pinned, WarmSteps};
 use std::time::Instant;
 

@@ -3,10 +3,10 @@
 //! objective and the path; the loop's rules in `tests_loop.rs`.
 
 use super::*;
+use crate::base::layout::Matrix;
 use crate::error::Error;
+use crate::eval::objective::GaussNewton;
 use crate::fit::Silent;
-use crate::layout::Matrix;
-use crate::objective::GaussNewton;
 use crate::testing::Lcg;
 use crate::{frequency_response, FrfData, Problem};
 use num_complex::Complex64 as C64;

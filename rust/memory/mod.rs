@@ -1,6 +1,7 @@
-//! Memory: the large arrays of a fit allocated fallibly, and the estimate
-//! of what a fit needs ([`estimate`]) so that a run too large for the
-//! machine is refused before it starts.
+//! Memory: the large arrays of a fit allocated fallibly, and the binding's
+//! allocator ([`blocks`]). The estimate of what a fit needs, so that a run
+//! too large for the machine is refused before it starts, is
+//! [`crate::fit::estimate`], beside what it sizes.
 //!
 //! Rust aborts the process when an ordinary allocation fails, and faer's
 //! constructors panic; neither may happen inside Python. Every array whose
@@ -14,7 +15,6 @@
 
 #[cfg(target_os = "linux")]
 pub mod blocks;
-pub mod estimate;
 
 pub use crate::error::human;
 use crate::error::{Error, Result};

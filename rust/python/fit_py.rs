@@ -5,21 +5,21 @@
 
 use super::convert::{bool_vec, detached, real_vec};
 use super::outcome_py::{iteration_dict, PyConeStep, PyFitOutcome, PyPathOutcome};
-use super::time_py::target;
+use super::settings_py::{L21Arg, LmArg};
+use super::time_py::{target, Target};
 use super::trust_py::PyFrozenRange;
+use crate::base::layout::{FreeSet, Shape};
+use crate::eval::objective::Objective;
+use crate::fit::lm::levenberg_marquardt;
+use crate::fit::stable::Stable;
 use crate::fit::{Iteration, Monitor};
-use crate::l21::{fit_l21, l21_path, single_cone_step, L21Settings, Weighting};
-use crate::layout::{FreeSet, Shape};
-use crate::lm::{levenberg_marquardt, LmSettings};
-use crate::objective::Objective;
+use crate::l21::{fit_l21, l21_path, single_cone_step};
 use crate::socp::Pinned;
-use crate::stable::Stable;
 use faer::Mat;
 use numpy::{PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict};
+use pyo3::types::PyBool;
 
 /// Calls the Python callback with one dict per iteration; stops the fit when
 /// the callback returns `False`, raises, or Ctrl-C arrives. Ctrl-C is
@@ -90,17 +90,6 @@ fn free_set(shape: &Shape, free: Option<PyReadonlyArray1<'_, bool>>) -> PyResult
     Ok(FreeSet::for_shape(shape, mask.as_deref())?)
 }
 
-fn weighting(name: &str) -> PyResult<Weighting> {
-    match name {
-        "relative" => Ok(Weighting::Relative),
-        "scaled" => Ok(Weighting::Scaled),
-        "plain" => Ok(Weighting::Plain),
-        other => Err(PyValueError::new_err(format!(
-            "weights: expected 'relative', 'scaled' or 'plain', got {other:?}"
-        ))),
-    }
-}
-
 /// The problem's objective, wrapped so that unstable frozen models on the
 /// range are refused when `stable` is given.
 fn with_stability<T>(
@@ -114,104 +103,47 @@ fn with_stability<T>(
     }
 }
 
-/// Read an optional setting, keeping `default` when absent.
-fn setting<'py, T: FromPyObjectOwned<'py>>(
-    d: &Bound<'py, PyDict>,
-    key: &str,
-    default: T,
-) -> PyResult<T> {
-    match d.get_item(key)? {
-        Some(v) => v
-            .extract()
-            .map_err(|_| PyValueError::new_err(format!("{key}: has the wrong type"))),
-        None => Ok(default),
+/// What every fit binding reads first, once: the cost behind `problem`,
+/// the start `theta`, the free parameters and the stability range.
+struct FitStart<'a> {
+    target: Target<'a>,
+    theta: Vec<f64>,
+    free: FreeSet,
+    stable: Option<&'a PyFrozenRange>,
+}
+
+impl<'a> FitStart<'a> {
+    fn read(
+        problem: &'a Bound<'_, PyAny>,
+        theta: &PyReadonlyArray1<'_, f64>,
+        free: Option<PyReadonlyArray1<'_, bool>>,
+        stable: Option<&'a PyFrozenRange>,
+    ) -> PyResult<Self> {
+        let theta = real_vec(theta);
+        let target = target(problem)?;
+        let free = free_set(target.objective().shape(), free)?;
+        Ok(FitStart {
+            target,
+            theta,
+            free,
+            stable,
+        })
     }
-}
 
-fn check_keys(d: &Bound<'_, PyDict>, known: &[&str]) -> PyResult<()> {
-    for key in d.keys() {
-        let key: String = key.extract()?;
-        if !known.contains(&key.as_str()) {
-            return Err(PyValueError::new_err(format!("unknown setting {key:?}")));
-        }
+    /// Run `fit` on the cost (refusing unstable frozen models when a range
+    /// was given) with the GIL released and the callback's monitor; also
+    /// returns whether Ctrl-C stopped it.
+    fn run<T: Send>(
+        &self,
+        py: Python<'_>,
+        callback: Option<Py<PyAny>>,
+        fit: impl FnOnce(&dyn Objective, &mut PyMonitor) -> crate::Result<T> + Send,
+    ) -> PyResult<(T, bool)> {
+        let (problem, stable) = (self.target.objective(), self.stable);
+        with_monitor(py, callback, |monitor| {
+            with_stability(problem, stable, |objective| fit(objective, monitor))
+        })
     }
-    Ok(())
-}
-
-fn lm_settings(d: &Bound<'_, PyDict>) -> PyResult<LmSettings> {
-    check_keys(d, &["max_iter", "xtol", "ftol", "gtol", "lambda0"])?;
-    let base = LmSettings::default();
-    let s = LmSettings {
-        max_iter: setting(d, "max_iter", base.max_iter)?,
-        xtol: setting(d, "xtol", base.xtol)?,
-        ftol: setting(d, "ftol", base.ftol)?,
-        gtol: setting(d, "gtol", base.gtol)?,
-        lambda0: setting(d, "lambda0", base.lambda0)?,
-    };
-    s.validate()?;
-    Ok(s)
-}
-
-fn weighting_name(w: Weighting) -> &'static str {
-    match w {
-        Weighting::Relative => "relative",
-        Weighting::Scaled => "scaled",
-        Weighting::Plain => "plain",
-    }
-}
-
-/// The settings as a dict: the names Python's `L21Settings` mirrors.
-fn l21_dict<'py>(py: Python<'py>, s: &L21Settings) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("gamma", s.gamma)?;
-    d.set_item("eps", s.eps)?;
-    d.set_item("weights", weighting_name(s.weighting))?;
-    d.set_item("dtheta_min", s.dtheta_min)?;
-    d.set_item("dphi_min", s.dphi_min)?;
-    d.set_item("dvnls_min", s.dvnls_min)?;
-    d.set_item("threshold", s.threshold)?;
-    d.set_item("cone_tol", s.cone_tol)?;
-    d.set_item("ftol", s.ftol)?;
-    d.set_item("max_outer", s.max_outer)?;
-    d.set_item("max_inner", s.max_inner)?;
-    d.set_item("lambda0", s.lambda0)?;
-    Ok(d)
-}
-
-/// Read settings from a dict with the keys of [`l21_dict`] (any subset).
-fn l21_settings(d: &Bound<'_, PyDict>) -> PyResult<L21Settings> {
-    let base = L21Settings::default();
-    let known = l21_dict(d.py(), &base)?;
-    for key in d.keys() {
-        if !known.contains(&key)? {
-            return Err(PyValueError::new_err(format!("unknown setting {key}")));
-        }
-    }
-    let name: String = setting(d, "weights", weighting_name(base.weighting).to_string())?;
-    let s = L21Settings {
-        gamma: setting(d, "gamma", base.gamma)?,
-        eps: setting(d, "eps", base.eps)?,
-        weighting: weighting(&name)?,
-        dtheta_min: setting(d, "dtheta_min", base.dtheta_min)?,
-        dphi_min: setting(d, "dphi_min", base.dphi_min)?,
-        dvnls_min: setting(d, "dvnls_min", base.dvnls_min)?,
-        threshold: setting(d, "threshold", base.threshold)?,
-        cone_tol: setting(d, "cone_tol", base.cone_tol)?,
-        ftol: setting(d, "ftol", base.ftol)?,
-        max_outer: setting(d, "max_outer", base.max_outer)?,
-        max_inner: setting(d, "max_inner", base.max_inner)?,
-        lambda0: setting(d, "lambda0", base.lambda0)?,
-        ..base
-    };
-    s.validate()?;
-    Ok(s)
-}
-
-/// The core's default l2,1 settings as a dict (what `lpvid.L21Settings` mirrors).
-#[pyfunction]
-#[pyo3(name = "l21_defaults")]
-fn l21_defaults_py(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    l21_dict(py, &L21Settings::default())
 }
 
 /// Levenberg-Marquardt on V_NLS; `settings` as in `LmSettings`.
@@ -222,21 +154,14 @@ fn fit_nls_py<'py>(
     problem: &Bound<'py, PyAny>,
     theta: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
-    settings: &Bound<'py, PyDict>,
+    settings: LmArg,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
 ) -> PyResult<PyFitOutcome> {
-    let theta = real_vec(&theta);
-    let target = target(problem)?;
-    let problem = target.objective();
-    let free = free_set(problem.shape(), free)?;
-    let settings = lm_settings(settings)?;
-    let stable = stable.as_deref();
-    let (fit, signalled) = with_monitor(py, callback, |monitor| {
-        problem.shape().check_theta(&theta)?;
-        with_stability(problem, stable, |objective| {
-            levenberg_marquardt(objective, &theta, &free, &settings, monitor)
-        })
+    let start = FitStart::read(problem, &theta, free, stable.as_deref())?;
+    start.target.objective().shape().check_theta(&start.theta)?;
+    let (fit, signalled) = start.run(py, callback, |objective, monitor| {
+        levenberg_marquardt(objective, &start.theta, &start.free, &settings.0, monitor)
     })?;
     PyFitOutcome::new(py, fit, signalled)
 }
@@ -244,6 +169,7 @@ fn fit_nls_py<'py>(
 /// Reweighted l2,1 fit (Algorithm 1); `settings` as in `L21Settings`.
 #[pyfunction]
 #[pyo3(name = "fit_l21", signature = (problem, theta, sup_norms, free, settings, callback=None, stable=None, pinned=None))]
+// One Rust parameter per Python parameter (PyO3), and Python's signature stays.
 #[allow(clippy::too_many_arguments)]
 fn fit_l21_py<'py>(
     py: Python<'py>,
@@ -251,33 +177,27 @@ fn fit_l21_py<'py>(
     theta: PyReadonlyArray1<'py, f64>,
     sup_norms: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
-    settings: &Bound<'py, PyDict>,
+    settings: L21Arg,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
     pinned: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, f64>, f64)>,
 ) -> PyResult<PyFitOutcome> {
-    let theta = real_vec(&theta);
+    let start = FitStart::read(problem, &theta, free, stable.as_deref())?;
     let sup = real_vec(&sup_norms);
-    let target = target(problem)?;
-    let problem = target.objective();
-    let free = free_set(problem.shape(), free)?;
-    let settings = l21_settings(settings)?;
-    let stable = stable.as_deref();
     let pinned = pinned
-        .map(|(dirs, exempt, weight)| pinned_directions(&dirs, &exempt, weight, free.len()))
+        .map(|(dirs, exempt, weight)| pinned_directions(&dirs, &exempt, weight, start.free.len()))
         .transpose()?;
-    let (fit, signalled) = with_monitor(py, callback, |monitor| {
-        with_stability(problem, stable, |objective| {
-            fit_l21(
-                objective,
-                &theta,
-                &free,
-                &sup,
-                &settings,
-                pinned.as_ref(),
-                monitor,
-            )
-        })
+    let (fit, signalled) = start.run(py, callback, |objective, monitor| {
+        let (theta, free) = (&start.theta, &start.free);
+        fit_l21(
+            objective,
+            theta,
+            free,
+            &sup,
+            &settings.0,
+            pinned.as_ref(),
+            monitor,
+        )
     })?;
     PyFitOutcome::new(py, fit, signalled)
 }
@@ -320,6 +240,7 @@ fn pinned_directions(
 /// Warm-started gamma path: one fit per gamma, largest gamma first.
 #[pyfunction]
 #[pyo3(name = "l21_path", signature = (problem, theta, sup_norms, gammas, free, settings, callback=None, stable=None))]
+// One Rust parameter per Python parameter (PyO3), and Python's signature stays.
 #[allow(clippy::too_many_arguments)]
 fn l21_path_py<'py>(
     py: Python<'py>,
@@ -328,22 +249,15 @@ fn l21_path_py<'py>(
     sup_norms: PyReadonlyArray1<'py, f64>,
     gammas: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
-    settings: &Bound<'py, PyDict>,
+    settings: L21Arg,
     callback: Option<Py<PyAny>>,
     stable: Option<PyRef<'py, PyFrozenRange>>,
 ) -> PyResult<PyPathOutcome> {
-    let theta = real_vec(&theta);
-    let sup = real_vec(&sup_norms);
-    let gammas = real_vec(&gammas);
-    let target = target(problem)?;
-    let problem = target.objective();
-    let free = free_set(problem.shape(), free)?;
-    let settings = l21_settings(settings)?;
-    let stable = stable.as_deref();
-    let (fits, signalled) = with_monitor(py, callback, |monitor| {
-        with_stability(problem, stable, |objective| {
-            l21_path(objective, &theta, &free, &sup, &gammas, &settings, monitor)
-        })
+    let start = FitStart::read(problem, &theta, free, stable.as_deref())?;
+    let (sup, gammas) = (real_vec(&sup_norms), real_vec(&gammas));
+    let (fits, signalled) = start.run(py, callback, |objective, monitor| {
+        let (theta, free) = (&start.theta, &start.free);
+        l21_path(objective, theta, free, &sup, &gammas, &settings.0, monitor)
     })?;
     PyPathOutcome::new(py, fits, signalled)
 }
@@ -357,17 +271,14 @@ fn cone_step_py<'py>(
     theta: PyReadonlyArray1<'py, f64>,
     sup_norms: PyReadonlyArray1<'py, f64>,
     free: Option<PyReadonlyArray1<'py, bool>>,
-    settings: &Bound<'py, PyDict>,
+    settings: L21Arg,
     mu: f64,
 ) -> PyResult<PyConeStep> {
-    let theta = real_vec(&theta);
+    let start = FitStart::read(problem, &theta, free, None)?;
     let sup = real_vec(&sup_norms);
-    let target = target(problem)?;
-    let problem = target.objective();
-    let free = free_set(problem.shape(), free)?;
-    let settings = l21_settings(settings)?;
+    let (objective, theta, free) = (start.target.objective(), &start.theta, &start.free);
     let report = detached(py, || {
-        single_cone_step(problem, &theta, &free, &sup, &settings, mu)
+        single_cone_step(objective, theta, free, &sup, &settings.0, mu)
     })?;
     Ok(PyConeStep::new(py, report))
 }
@@ -377,7 +288,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyPathOutcome>()?;
     m.add_class::<PyConeStep>()?;
     m.add_function(wrap_pyfunction!(cone_step_py, m)?)?;
-    m.add_function(wrap_pyfunction!(l21_defaults_py, m)?)?;
     m.add_function(wrap_pyfunction!(fit_nls_py, m)?)?;
     m.add_function(wrap_pyfunction!(fit_l21_py, m)?)?;
     m.add_function(wrap_pyfunction!(l21_path_py, m)?)?;

@@ -3,8 +3,8 @@
 
 use super::convert::bool_vec;
 use super::model_py::ShapeArg;
-use crate::layout::FreeSet;
-use crate::memory::estimate::{FitSizes, Method, TimeSizes};
+use crate::base::layout::FreeSet;
+use crate::fit::estimate::{FitSizes, Method, TimeSizes};
 use crate::memory::fail_allocation_after;
 use numpy::PyReadonlyArray1;
 use pyo3::exceptions::PyValueError;

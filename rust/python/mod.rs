@@ -7,6 +7,7 @@ mod memory_py;
 mod model_py;
 mod outcome_py;
 mod problem_py;
+mod settings_py;
 mod simulate_py;
 mod time_py;
 mod trust_py;
@@ -35,10 +36,10 @@ pyo3::create_exception!(
 const TARGET_FEATURES: &str = concat!("lpvid-target-features:", env!("LPVID_TARGET_FEATURES"), ";");
 
 /// The route of the core's hand-written vector code that this process runs
-/// (`"avx512"`, `"avx2"` or `"portable"`; [`crate::route`]).
+/// (`"avx512"`, `"avx2"` or `"portable"`; [`crate::base::route`]).
 #[pyfunction]
 fn kernel_route() -> &'static str {
-    crate::route::Route::current().name()
+    crate::base::route::Route::current().name()
 }
 
 /// The compiled core of lpvid (private: use the `lpvid` package).
@@ -49,7 +50,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     crate::memory::blocks::system_heaps();
     // faer's calls that are not told their parallelism run on one thread:
     // some of them sum in another order on another number of threads (see
-    // `crate::dense`), and no result may depend on the machine's cores.
+    // `crate::base::dense`), and no result may depend on the machine's cores.
     faer::set_global_parallelism(faer::Par::Seq);
     // The package version, from Cargo.toml (lpvid.__version__).
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
@@ -62,6 +63,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model_py::PyModelView>()?;
     problem_py::register(m)?;
     fit_py::register(m)?;
+    settings_py::register(m)?;
     memory_py::register(m)?;
     simulate_py::register(m)?;
     time_py::register(m)?;

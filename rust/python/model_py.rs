@@ -4,7 +4,7 @@
 //! bindings that take no basis values (time records, memory estimates).
 
 use super::convert::flat;
-use crate::layout::Shape;
+use crate::base::layout::Shape;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;

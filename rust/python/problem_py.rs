@@ -2,10 +2,10 @@
 
 use super::convert::{bool_vec, complex_vec, detached, guarded, real_vec, to_py};
 use super::model_py::PyModelView;
-use crate::data::FrfData;
-use crate::layout::FreeSet;
-use crate::problem::Problem;
-use crate::response::frequency_response;
+use crate::base::data::FrfData;
+use crate::base::layout::FreeSet;
+use crate::eval::problem::Problem;
+use crate::eval::response::frequency_response;
 use numpy::{Complex64, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 

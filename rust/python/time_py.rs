@@ -5,9 +5,9 @@
 use super::convert::{bool_vec, detached, guarded, real_vec, to_py};
 use super::model_py::ShapeArg;
 use super::problem_py::PyProblem;
-use crate::layout::FreeSet;
-use crate::objective::Objective;
-use crate::sum::Sum;
+use crate::base::layout::FreeSet;
+use crate::eval::objective::Objective;
+use crate::eval::sum::Sum;
 use crate::time::{InitialState, Record, StageTimes, TimeProblem};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyTypeError, PyValueError};

@@ -3,10 +3,10 @@
 
 use super::convert::{complex_vec, detached, guarded, real_vec, to_py};
 use super::model_py::PyModelView;
+use crate::base::layout::Shape;
 use crate::error::invalid;
-use crate::layout::Shape;
-use crate::sensitivity::lti_jacobian;
-use crate::stable::{margin, FrozenRange};
+use crate::eval::sensitivity::lti_jacobian;
+use crate::fit::stable::{margin, FrozenRange};
 use numpy::{Complex64, PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 

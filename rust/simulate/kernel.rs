@@ -6,7 +6,7 @@
 // Small matrix kernels index several arrays at once; an index reads best.
 #![allow(clippy::needless_range_loop)]
 
-use crate::layout::{Matrix, Shape};
+use crate::base::layout::{Matrix, Shape};
 
 /// Outputs `y` and, when asked for, states `x` (as in [`super::Trajectory`]).
 pub(super) type Outputs = (Vec<f64>, Option<Vec<f64>>);
@@ -125,7 +125,7 @@ impl<const K: usize> Lanes<K> {
             xs: x.as_deref_mut(),
         };
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new().filter(|_| crate::route::Route::avx2()) {
+        if let Some(simd) = pulp::x86::V3::try_new().filter(|_| crate::base::route::Route::avx2()) {
             pulp::Simd::vectorize(simd, run);
             return (y, x);
         }

@@ -44,8 +44,8 @@ mod zoh;
 
 pub use zoh::{expm, simulate_zoh};
 
+use crate::base::layout::Shape;
 use crate::error::{invalid, Result};
-use crate::layout::Shape;
 use kernel::{lanes_by_nb, Lanes, DYN};
 use wide::simulate_wide;
 
@@ -215,9 +215,9 @@ pub fn simulate(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::base::layout::Matrix;
     use crate::error::Error;
-    use crate::layout::Matrix;
-    use crate::lti::Frozen;
+    use crate::eval::lti::Frozen;
     use crate::testing::Lcg;
 
     fn model(n: usize, r: usize, l: usize, nb: usize, a0: f64) -> (Shape, Vec<f64>) {

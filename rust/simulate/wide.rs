@@ -7,7 +7,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::BLOCK;
-use crate::layout::{Matrix, Shape};
+use crate::base::layout::{Matrix, Shape};
 use rayon::prelude::*;
 
 /// The coefficient matrices of one state-space matrix side by side,

@@ -4,8 +4,8 @@
 
 use super::wide::{dot, outputs, Wide};
 use super::{check_sizes, check_values, finish, Trajectory, BLOCK};
+use crate::base::layout::{Matrix, Shape};
 use crate::error::{invalid, Error, Result};
-use crate::layout::{Matrix, Shape};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};

@@ -1,5 +1,5 @@
 //! The Newton systems of the cone step through every point's factor
-//! ([`crate::point_factors`]), where the Gauss-Newton pieces carry them.
+//! ([`crate::eval::point_factors`]), where the Gauss-Newton pieces carry them.
 //!
 //! In the scaled variables of a round the quadratic is
 //! `P = V V^T + Delta` over the open parameters, `V = sqrt(2/M) S U` and
@@ -24,10 +24,10 @@
 //! refinement against the dense Hessian changed nothing there, and was
 //! left out).
 
-use super::newton::NewtonGroup;
-use crate::dense::{cholesky_solve, factor_lower};
+use super::group::NewtonGroup;
+use crate::base::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
-use crate::point_factors::PointFactors;
+use crate::eval::point_factors::PointFactors;
 use faer::Mat;
 
 /// The round's pieces of the factored Newton solve.

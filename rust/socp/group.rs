@@ -1,4 +1,6 @@
-//! A penalised group as the cone step sees it.
+//! A penalised group as the cone step sees it ([`ConeGroup`]), and as its
+//! Newton's method sees it ([`NewtonGroup`], shared by `newton` and
+//! `factored`).
 
 /// One penalised group as the cone step sees it.
 #[derive(Debug, Clone)]
@@ -65,6 +67,63 @@ impl ConeGroup {
     pub(super) fn free_positions(&self) -> impl Iterator<Item = usize> + '_ {
         self.entries.iter().filter_map(|e| e.1)
     }
+}
+
+/// One group of the program as Newton's method sees it (`newton`):
+/// its free entries are `x[start..start + alpha.len()]`.
+#[derive(Debug, Clone)]
+pub(super) struct NewtonGroup {
+    pub(super) start: usize,
+    /// `z = beta + alpha o x` over the free entries.
+    pub(super) alpha: Vec<f64>,
+    pub(super) beta: Vec<f64>,
+    /// `sum beta^2` over the fixed entries (constant).
+    pub(super) fixed_squares: f64,
+    /// The weight `c_g` of `||z_g||`.
+    pub(super) weight: f64,
+}
+
+impl NewtonGroup {
+    pub(super) fn range(&self) -> std::ops::Range<usize> {
+        self.start..self.start + self.alpha.len()
+    }
+
+    pub(super) fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
+        let xs = &x[self.range()];
+        self.alpha
+            .iter()
+            .zip(&self.beta)
+            .zip(xs)
+            .map(|((a, b), x)| b + a * x)
+    }
+
+    pub(super) fn norm(&self, x: &[f64]) -> f64 {
+        (self.z(x).map(|z| z * z).sum::<f64>() + self.fixed_squares).sqrt()
+    }
+
+    /// The smallest `||z_g||` on the segment from `x` to `x + dx`.
+    pub(super) fn closest(&self, x: &[f64], dx: &[f64]) -> f64 {
+        let w: Vec<f64> = self
+            .alpha
+            .iter()
+            .zip(&dx[self.range()])
+            .map(|(a, d)| a * d)
+            .collect();
+        let z: Vec<f64> = self.z(x).collect();
+        let ww = dot(&w, &w);
+        let t = if ww > 0.0 {
+            (-dot(&z, &w) / ww).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let moved: Vec<f64> = z.iter().zip(&w).map(|(z, w)| z + t * w).collect();
+        (dot(&moved, &moved) + self.fixed_squares).sqrt()
+    }
+}
+
+/// The dot product of two vectors.
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 #[cfg(test)]

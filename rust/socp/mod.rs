@@ -56,7 +56,7 @@ pub use program::{ConeSolver, DEFAULT_CONE_TOL};
 pub use warm::WarmSteps;
 
 use crate::error::Result;
-use crate::objective::GaussNewton;
+use crate::eval::objective::GaussNewton;
 use round::Method;
 
 /// A group whose relative magnitude `varphi ||theta_g + d_g||` ends below

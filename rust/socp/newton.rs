@@ -32,9 +32,10 @@
 //! [`MAX_ITERATIONS`]; the caller then has Clarabel solve the program.
 
 use super::factored::FactoredHessian;
+use super::group::{dot, NewtonGroup};
 use super::packed::Quadratic;
 use super::{ConeGroup, ConeProblem};
-use crate::dense::{cholesky_solve, factor_lower};
+use crate::base::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
 use faer::{Mat, MatRef};
 
@@ -70,53 +71,6 @@ const RELEASES: u32 = 2;
 /// rounding errors of `f`.
 const FLOOR_TOL: f64 = 1e-13;
 
-/// One group of the program: its free entries are `x[start..start + alpha.len()]`.
-#[derive(Debug, Clone)]
-pub(super) struct NewtonGroup {
-    pub(super) start: usize,
-    /// `z = beta + alpha o x` over the free entries.
-    pub(super) alpha: Vec<f64>,
-    pub(super) beta: Vec<f64>,
-    /// `sum beta^2` over the fixed entries (constant).
-    pub(super) fixed_squares: f64,
-    /// The weight `c_g` of `||z_g||`.
-    pub(super) weight: f64,
-}
-
-impl NewtonGroup {
-    pub(super) fn z<'a>(&'a self, x: &'a [f64]) -> impl Iterator<Item = f64> + 'a {
-        let xs = &x[self.range()];
-        self.alpha
-            .iter()
-            .zip(&self.beta)
-            .zip(xs)
-            .map(|((a, b), x)| b + a * x)
-    }
-
-    fn norm(&self, x: &[f64]) -> f64 {
-        (self.z(x).map(|z| z * z).sum::<f64>() + self.fixed_squares).sqrt()
-    }
-
-    /// The smallest `||z_g||` on the segment from `x` to `x + dx`.
-    fn closest(&self, x: &[f64], dx: &[f64]) -> f64 {
-        let w: Vec<f64> = self
-            .alpha
-            .iter()
-            .zip(&dx[self.range()])
-            .map(|(a, d)| a * d)
-            .collect();
-        let z: Vec<f64> = self.z(x).collect();
-        let ww = dot(&w, &w);
-        let t = if ww > 0.0 {
-            (-dot(&z, &w) / ww).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let moved: Vec<f64> = z.iter().zip(&w).map(|(z, w)| z + t * w).collect();
-        (dot(&moved, &moved) + self.fixed_squares).sqrt()
-    }
-}
-
 /// How Newton's method ended, with the iterations it took.
 #[derive(Debug, Clone)]
 pub(super) enum Newton {
@@ -148,10 +102,6 @@ impl Line<'_> {
     }
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// Minimise `f` from `x = 0`, or from `start`, to `tol` (the Newton
 /// decrement `g^T H^-1 g` at most `tol max(1, |f|)`, `tol` at least
 /// [`FLOOR_TOL`], then one more full step: quadratically closer), or why
@@ -179,10 +129,6 @@ pub(super) fn newton(
 }
 
 impl NewtonGroup {
-    pub(super) fn range(&self) -> std::ops::Range<usize> {
-        self.start..self.start + self.alpha.len()
-    }
-
     /// Whether the group can be held at zero (no fixed entry off zero).
     fn can_hold(&self) -> bool {
         self.fixed_squares == 0.0

@@ -2,7 +2,7 @@
 //! kept packed: half a dense matrix, so that the Hessians can be formed
 //! and factored in the caller's matrix itself.
 
-use crate::dense::{par_for, product};
+use crate::base::dense::{par_for, product};
 use crate::error::Result;
 use crate::memory::try_grow;
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};

@@ -11,7 +11,7 @@
 //! exempt directions) change nothing anywhere, so the steps stay free along
 //! them.
 
-use crate::dense::{par_for, product, thin_svd};
+use crate::base::dense::{par_for, product, thin_svd};
 use crate::error::Result;
 use crate::memory::try_zeros;
 use faer::linalg::matmul::matmul;

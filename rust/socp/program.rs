@@ -3,7 +3,8 @@
 
 use super::{ConeGroup, ConeProblem};
 use crate::error::Result as CoreResult;
-use crate::memory::{estimate, guarded, probe, try_grow};
+use crate::fit::estimate;
+use crate::memory::{guarded, probe, try_grow};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,

@@ -7,7 +7,7 @@ use super::factored::FactoredHessian;
 use super::newton::{newton, Newton};
 use super::packed::subtract_gram;
 use super::{ConeGroup, ConeProblem, ConeSolver};
-use crate::dense::{cholesky, lower_solve, lower_transpose_solve, product};
+use crate::base::dense::{cholesky, lower_solve, lower_transpose_solve, product};
 use crate::error::Result;
 use crate::memory::try_mat;
 use clarabel::solver::SolverStatus;

@@ -8,7 +8,7 @@
 //! `dy_j(t) = psi_i(t) z_b(t)`. An entry `a` of the initial state starts a
 //! state sensitivity `s(0) = e_a` without forcing.
 
-use crate::layout::{FreeSet, Matrix, Shape};
+use crate::base::layout::{FreeSet, Matrix, Shape};
 
 /// A column whose sensitivity runs through the state recursion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

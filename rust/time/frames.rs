@@ -7,8 +7,8 @@ use super::hold::Hold;
 #[cfg(test)]
 use super::hold_reference;
 use super::record::Record;
+use crate::base::layout::{Matrix, Shape};
 use crate::error::{Error, Result};
-use crate::layout::{Matrix, Shape};
 use crate::memory::try_vec;
 use rayon::prelude::*;
 
@@ -201,7 +201,7 @@ impl Frames {
                             };
                             // With AVX2 and FMA where the route has them.
                             let step = || sample.hold(coef, record, states, dt, t, psi1, adk, f);
-                            let held = match crate::route::Route::avx2() {
+                            let held = match crate::base::route::Route::avx2() {
                                 true => pulp::Arch::new().dispatch(step),
                                 false => step(),
                             };

@@ -6,10 +6,10 @@ use super::record::{InitialState, Record};
 use super::schur::{eliminate, estimate};
 use super::sensitivity::{Normal, Pass};
 use super::StageTimes;
+use crate::base::layout::{FreeSet, Shape};
 use crate::error::{invalid, Result};
-use crate::layout::{FreeSet, Shape};
+use crate::eval::objective::{GaussNewton, Objective};
 use crate::memory::try_vec;
-use crate::objective::{GaussNewton, Objective};
 use crate::simulate::{simulate, simulate_zoh, Trajectory};
 use std::time::Instant;
 

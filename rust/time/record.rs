@@ -1,7 +1,7 @@
 //! One time record and how its initial state is treated.
 
+use crate::base::layout::Shape;
 use crate::error::{invalid, Result};
-use crate::layout::Shape;
 
 /// One record: inputs, basis values along the scheduling trajectory,
 /// measured outputs and their weights `1 / sigma`, all row-major by sample.

@@ -11,7 +11,7 @@
 //! largest) are left at zero.
 
 use super::sensitivity::Normal;
-use crate::dense::symmetric_eigen;
+use crate::base::dense::symmetric_eigen;
 use crate::error::{Error, Result};
 use crate::memory::try_vec;
 use faer::Mat;

@@ -122,7 +122,7 @@ impl Slice {
             jac,
         };
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = pulp::x86::V3::try_new().filter(|_| crate::route::Route::avx2()) {
+        if let Some(simd) = pulp::x86::V3::try_new().filter(|_| crate::base::route::Route::avx2()) {
             pulp::Simd::vectorize(simd, run);
             return;
         }

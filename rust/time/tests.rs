@@ -4,8 +4,8 @@
 //! row on `[[A, B], [0, 0]] dt`, no balancing).
 
 use super::{InitialState, TimeProblem};
-use crate::layout::{FreeSet, Matrix, Shape};
-use crate::objective::GaussNewton;
+use crate::base::layout::{FreeSet, Matrix, Shape};
+use crate::eval::objective::GaussNewton;
 use crate::testing::{time_model, time_records};
 
 /// `|new - old| <= 1e-10 max |old|`, entry by entry.

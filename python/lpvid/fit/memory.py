@@ -1,7 +1,7 @@
 """Memory: what a fit needs, what the process may still allocate, and MemoryError first.
 
 A fit's peak memory is estimated from the sizes of the problem by the core
-(``rust/memory/estimate.rs``: every large array the fit allocates, read off
+(``rust/fit/estimate.rs``: every large array the fit allocates, read off
 the code that allocates it, and checked against the peak a counting
 allocator measures in ``tests/core_memory.rs``). What the process may still
 allocate is the smallest of the address-space limit (``RLIMIT_AS``, e.g.

@@ -3,7 +3,7 @@
 The one place for the frozen stability test (poles strictly inside the unit
 circle in discrete time, strictly in the left half plane in continuous time),
 its margin, and the frequency response of an LTI model written in numpy.
-The core's stability check (``rust/stable.rs``) follows the same margin
+The core's stability check (``rust/fit/stable.rs``) follows the same margin
 rule; a test compares the two.
 """
 

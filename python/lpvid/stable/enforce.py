@@ -1,7 +1,7 @@
 """Fits that keep every frozen model on the scheduling range stable (``stable=True``).
 
 The core refuses a trial step when the smallest stability margin it finds
-on a set of check points is below :data:`STABLE_TOL` (``rust/stable.rs``):
+on a set of check points is below :data:`STABLE_TOL` (``rust/fit/stable.rs``):
 for one scheduling parameter a uniform grid of :data:`CHECK_POINTS` points,
 every :data:`STRIDE`-th evaluated first and every point next to the
 smallest local minima then, so that the least stable place is resolved to

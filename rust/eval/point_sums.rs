@@ -2,7 +2,7 @@
 //! tasks finish.
 //!
 //! A Gauss-Newton evaluation cuts every point's lines into tasks and runs
-//! them in parallel ([`crate::problem`]); each task leaves its `S1`, `S2`
+//! them in parallel ([`crate::eval::problem`]); each task leaves its `S1`, `S2`
 //! and `J^T r` ([`GramParts`]), and a point's parts are summed in task
 //! order, so that the sum is the same to the last bit however the tasks
 //! were scheduled. Summed as they come in (a part waits only for the
@@ -12,9 +12,9 @@
 //! ([`KronGram::finish`]): at n = 24 3 x 3, 162 parts of 2.1 MB an
 //! evaluation, whose page faults and zeroing took about 15 % of it.
 
+use crate::base::layout::Shape;
 use crate::error::Result;
-use crate::kron_gram::{GramParts, KronGram};
-use crate::layout::Shape;
+use crate::eval::kron_gram::{GramParts, KronGram};
 use faer::Mat;
 use std::sync::{Mutex, MutexGuard};
 

@@ -28,9 +28,9 @@
 //! ([`worth_it`]), never of the values: a fit takes the same route on
 //! every machine.
 
-use crate::dense::{cholesky_solve, factor_lower};
+use crate::base::dense::{cholesky_solve, factor_lower};
 use crate::error::Result;
-use crate::gram_product::{gram_product, scratch_len};
+use crate::eval::gram_product::{gram_product, scratch_len};
 use crate::memory::{try_vec, try_zeros};
 use faer::{Accum, Mat};
 use rayon::prelude::*;
@@ -386,4 +386,4 @@ impl FactoredSystem {
 
 #[cfg(test)]
 #[path = "point_factors_tests.rs"]
-mod tests;
+pub(crate) mod tests;

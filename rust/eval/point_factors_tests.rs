@@ -1,9 +1,8 @@
 //! Unit tests of the factored Levenberg-Marquardt step (`super`).
 
 use super::*;
-use crate::lm::lm_step;
-use crate::objective::GaussNewton;
-use crate::testing::{relative_gap, Lcg};
+use crate::eval::objective::GaussNewton;
+use crate::testing::Lcg;
 
 /// `G G^T` (`lti x lti`, column-major) for `G` of `rank` random columns,
 /// row `p` scaled by `10^(scale p)`, and a vector in its range.
@@ -64,8 +63,15 @@ fn a_point_the_model_does_not_see_has_no_factor() {
 
 /// The Gauss-Newton pieces of `points` random low-rank points over the
 /// free parameters `free` of `n_coef` basis coefficients: dense, and with
-/// the factors.
-fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize]) -> GaussNewton {
+/// the factors (also the pieces of `crate::fit::lm`'s tests, which check
+/// the factored step against the dense one).
+pub(crate) fn pieces(
+    points: usize,
+    lti: usize,
+    rank: usize,
+    n_coef: usize,
+    free: &[usize],
+) -> GaussNewton {
     let mut s = Lcg(11);
     let (mut grams, mut jtr, mut psi) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..points {
@@ -97,71 +103,6 @@ fn pieces(points: usize, lti: usize, rank: usize, n_coef: usize, free: &[usize])
         gram,
         factors: Some(factors),
     }
-}
-
-#[test]
-fn the_factored_step_is_the_dense_step_with_and_without_fixed_parameters() {
-    let (points, lti, rank, n_coef) = (5, 30, 7, 3);
-    let every: Vec<usize> = (0..n_coef * lti).collect();
-    // Some parameters fixed: whole rows of one coefficient, scattered others.
-    let some: Vec<usize> = every
-        .iter()
-        .copied()
-        .filter(|u| u % 7 != 3 && *u / lti != 1)
-        .collect();
-    for free in [every, some] {
-        let gn = pieces(points, lti, rank, n_coef, &free);
-        let factors = gn.factors.as_ref().unwrap();
-        assert_eq!(factors.ranks(), vec![rank; points]);
-        let nf = free.len();
-        let diag: Vec<f64> = (0..nf).map(|i| gn.gram[i + i * nf]).collect();
-        let system = FactoredSystem::new(factors, &diag).unwrap();
-        for mu in [1e-4, 1e-2, 1.0, 100.0] {
-            let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
-            let factored = system.step(factors, &diag, mu).unwrap().unwrap();
-            let err = relative_gap(&factored, &dense);
-            assert!(err < 1e-8, "nf {nf} mu {mu}: {err:e}");
-        }
-    }
-}
-
-#[test]
-fn joined_factors_step_as_the_sum_of_their_points() {
-    let (lti, n_coef) = (20, 2);
-    let free: Vec<usize> = (0..n_coef * lti).collect();
-    let a = pieces(3, lti, 5, n_coef, &free);
-    let b = pieces(4, lti, 5, n_coef, &free);
-    let nf = free.len();
-    let gram: Vec<f64> = a.gram.iter().zip(&b.gram).map(|(x, y)| x + y).collect();
-    let gradient: Vec<f64> = a
-        .gradient
-        .iter()
-        .zip(&b.gradient)
-        .map(|(x, y)| x + y)
-        .collect();
-    let joined = a
-        .factors
-        .clone()
-        .unwrap()
-        .join(b.factors.clone().unwrap())
-        .unwrap();
-    assert_eq!(joined.rank(), 35);
-    let sum = GaussNewton {
-        vnls: 2.0,
-        gradient,
-        gram,
-        factors: Some(joined),
-    };
-    let diag: Vec<f64> = (0..nf).map(|i| sum.gram[i + i * nf]).collect();
-    let factors = sum.factors.as_ref().unwrap();
-    let system = FactoredSystem::new(factors, &diag).unwrap();
-    let dense = lm_step(&sum, &diag, 1e-2).unwrap().unwrap();
-    let factored = system.step(factors, &diag, 1e-2).unwrap().unwrap();
-    assert!(relative_gap(&factored, &dense) < 1e-8);
-    // Other free parameters: no join.
-    let fewer: Vec<usize> = (1..n_coef * lti).collect();
-    let c = pieces(2, lti, 5, n_coef, &fewer);
-    assert!(a.factors.unwrap().join(c.factors.unwrap()).is_none());
 }
 
 #[test]

@@ -4,9 +4,9 @@
 //! sums of costs are others. Levenberg-Marquardt and the l2,1 fit work on
 //! any [`Objective`].
 
+use crate::base::layout::{FreeSet, Shape};
 use crate::error::Result;
-use crate::layout::{FreeSet, Shape};
-use crate::point_factors::PointFactors;
+use crate::eval::point_factors::PointFactors;
 
 /// V_NLS with its gradient and Gauss-Newton matrix at one `theta`,
 /// restricted to the free parameters.
@@ -20,7 +20,7 @@ pub struct GaussNewton {
     pub gram: Vec<f64>,
     /// `J^T J` and the gradient as every point's factor, where the shape
     /// makes the Levenberg-Marquardt step cheaper that way
-    /// ([`crate::point_factors`]); None elsewhere.
+    /// ([`crate::eval::point_factors`]); None elsewhere.
     pub factors: Option<PointFactors>,
 }
 

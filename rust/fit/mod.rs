@@ -1,6 +1,13 @@
 //! What the fitting routines share: the record of one iteration, the
 //! outcome of a fit, the damping rule, and the monitor through which a
-//! caller follows progress and stops a run.
+//! caller follows progress and stops a run; and the fits on them:
+//! Levenberg-Marquardt ([`lm`]), the stability guard ([`stable`]) and the
+//! estimate of a fit's memory ([`estimate`]). The l2,1 fit is [`crate::l21`],
+//! its cone step [`crate::socp`].
+
+pub mod estimate;
+pub mod lm;
+pub mod stable;
 
 use crate::error::{invalid, Result};
 use std::time::Instant;

@@ -3,20 +3,20 @@
 //! (method.md (7)), its gradient and the Gauss-Newton matrix `J^T J` from the
 //! analytic Jacobian without forming the full Jacobian (method.md section 3):
 //! per point `q` the Gram matrix `H_q = J_q^T J_q` of the frozen LTI model is
-//! accumulated from the Kronecker structure of its rows ([`crate::kron_gram`]),
+//! accumulated from the Kronecker structure of its rows ([`crate::eval::kron_gram`]),
 //! and `J^T J = sum_q (psi_q psi_q^T) kron H_q`.
 
-use crate::data::FrfData;
+use crate::base::data::FrfData;
+use crate::base::lanes::{Cx, LANES};
+use crate::base::layout::{FreeSet, Matrix, Shape};
 use crate::error::{invalid, Error, Result};
-use crate::kron_gram::{GramParts, KronGram};
-use crate::lanes::{Cx, LANES};
-use crate::layout::{FreeSet, Matrix, Shape};
-use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::eval::kron_gram::{GramParts, KronGram};
+use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::eval::objective::{GaussNewton, Objective};
+use crate::eval::point_factors::{worth_it, PointFactors};
+use crate::eval::point_sums::PointSums;
+use crate::eval::response::with_constant;
 use crate::memory::{try_par_columns_by, try_vec};
-use crate::objective::{GaussNewton, Objective};
-use crate::point_factors::{worth_it, PointFactors};
-use crate::point_sums::PointSums;
-use crate::response::with_constant;
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -191,7 +191,7 @@ impl Problem {
     /// The rank of a point's Gram matrix is at most `n (l + r) + l r`: the
     /// frozen response does not see the `n^2` similarity transformations
     /// (the Levenberg-Marquardt steps go through every point's factor
-    /// where [`crate::point_factors::worth_it`] says so).
+    /// where [`crate::eval::point_factors::worth_it`] says so).
     fn rank_bound(&self) -> usize {
         let s = &self.shape;
         (s.n * (s.l + s.r) + s.l * s.r).min(s.lti_len())
@@ -261,7 +261,7 @@ impl Problem {
         }
     }
 
-    /// The Gram pieces and `J^T r` of one task's lines (see [`crate::kron_gram`]).
+    /// The Gram pieces and `J^T r` of one task's lines (see [`crate::eval::kron_gram`]).
     fn task_gram(
         &self,
         form: &Hessenberg,

@@ -2,6 +2,9 @@
 
 use super::*;
 use crate::error::Error;
+use crate::eval::objective::GaussNewton;
+use crate::eval::point_factors::tests::pieces;
+use crate::testing::relative_gap;
 
 fn refused(settings: LmSettings) -> (&'static str, String) {
     match settings.validate() {
@@ -113,10 +116,10 @@ fn a_failed_machine_ends_the_fit_and_a_model_that_cannot_be_evaluated_is_a_rejec
 }
 
 /// Rosenbrock's function as least squares, `r = [10 (y - x^2), 1 - x]`.
-struct Rosenbrock(crate::layout::Shape);
+struct Rosenbrock(crate::base::layout::Shape);
 
 impl Objective for Rosenbrock {
-    fn shape(&self) -> &crate::layout::Shape {
+    fn shape(&self) -> &crate::base::layout::Shape {
         &self.0
     }
     fn n_residuals(&self) -> usize {
@@ -156,7 +159,7 @@ impl Objective for Rosenbrock {
 
 /// The fit from (-1.2, 1) and the cost there.
 fn rosenbrock(settings: &LmSettings) -> (Fit, f64) {
-    let problem = Rosenbrock(crate::layout::Shape::new(1, 1, 1, 1).expect("a valid shape"));
+    let problem = Rosenbrock(crate::base::layout::Shape::new(1, 1, 1, 1).expect("a valid shape"));
     let start = [-1.2, 1.0];
     let v0 = problem.cost(&start).expect("finite");
     let fit = levenberg_marquardt(
@@ -223,7 +226,7 @@ fn ftol_stops_at_the_first_accepted_step_that_gains_less_than_its_share() {
 struct Cliff(Rosenbrock);
 
 impl Objective for Cliff {
-    fn shape(&self) -> &crate::layout::Shape {
+    fn shape(&self) -> &crate::base::layout::Shape {
         self.0.shape()
     }
     fn n_residuals(&self) -> usize {
@@ -245,7 +248,7 @@ impl Objective for Cliff {
 
 #[test]
 fn lm_gives_up_when_no_damping_helps_and_returns_the_start() {
-    let shape = crate::layout::Shape::new(1, 1, 1, 1).expect("a valid shape");
+    let shape = crate::base::layout::Shape::new(1, 1, 1, 1).expect("a valid shape");
     // No step-size or cost-change test to end it first.
     let settings = LmSettings {
         max_iter: 1000,
@@ -270,7 +273,7 @@ fn lm_gives_up_when_no_damping_helps_and_returns_the_start() {
 
 #[test]
 fn a_doubtful_step_is_judged_by_its_cost_alone_and_its_pieces_come_only_when_taken() {
-    let problem = Rosenbrock(crate::layout::Shape::new(1, 1, 1, 1).expect("a valid shape"));
+    let problem = Rosenbrock(crate::base::layout::Shape::new(1, 1, 1, 1).expect("a valid shape"));
     let counted = crate::testing::Counted::new(&problem);
     let settings = LmSettings {
         lambda0: 1e-4,
@@ -298,4 +301,71 @@ fn a_doubtful_step_is_judged_by_its_cost_alone_and_its_pieces_come_only_when_tak
         "no other step was rejected"
     );
     assert_eq!(counted.calls(), crate::testing::expected_calls(h, doubtful));
+}
+
+// The factored step (`crate::eval::point_factors`) against the dense one.
+
+#[test]
+fn the_factored_step_is_the_dense_step_with_and_without_fixed_parameters() {
+    let (points, lti, rank, n_coef) = (5, 30, 7, 3);
+    let every: Vec<usize> = (0..n_coef * lti).collect();
+    // Some parameters fixed: whole rows of one coefficient, scattered others.
+    let some: Vec<usize> = every
+        .iter()
+        .copied()
+        .filter(|u| u % 7 != 3 && *u / lti != 1)
+        .collect();
+    for free in [every, some] {
+        let gn = pieces(points, lti, rank, n_coef, &free);
+        let factors = gn.factors.as_ref().unwrap();
+        assert_eq!(factors.ranks(), vec![rank; points]);
+        let nf = free.len();
+        let diag: Vec<f64> = (0..nf).map(|i| gn.gram[i + i * nf]).collect();
+        let system = FactoredSystem::new(factors, &diag).unwrap();
+        for mu in [1e-4, 1e-2, 1.0, 100.0] {
+            let dense = lm_step(&gn, &diag, mu).unwrap().unwrap();
+            let factored = system.step(factors, &diag, mu).unwrap().unwrap();
+            let err = relative_gap(&factored, &dense);
+            assert!(err < 1e-8, "nf {nf} mu {mu}: {err:e}");
+        }
+    }
+}
+
+#[test]
+fn joined_factors_step_as_the_sum_of_their_points() {
+    let (lti, n_coef) = (20, 2);
+    let free: Vec<usize> = (0..n_coef * lti).collect();
+    let a = pieces(3, lti, 5, n_coef, &free);
+    let b = pieces(4, lti, 5, n_coef, &free);
+    let nf = free.len();
+    let gram: Vec<f64> = a.gram.iter().zip(&b.gram).map(|(x, y)| x + y).collect();
+    let gradient: Vec<f64> = a
+        .gradient
+        .iter()
+        .zip(&b.gradient)
+        .map(|(x, y)| x + y)
+        .collect();
+    let joined = a
+        .factors
+        .clone()
+        .unwrap()
+        .join(b.factors.clone().unwrap())
+        .unwrap();
+    assert_eq!(joined.rank(), 35);
+    let sum = GaussNewton {
+        vnls: 2.0,
+        gradient,
+        gram,
+        factors: Some(joined),
+    };
+    let diag: Vec<f64> = (0..nf).map(|i| sum.gram[i + i * nf]).collect();
+    let factors = sum.factors.as_ref().unwrap();
+    let system = FactoredSystem::new(factors, &diag).unwrap();
+    let dense = lm_step(&sum, &diag, 1e-2).unwrap().unwrap();
+    let factored = system.step(factors, &diag, 1e-2).unwrap().unwrap();
+    assert!(relative_gap(&factored, &dense) < 1e-8);
+    // Other free parameters: no join.
+    let fewer: Vec<usize> = (1..n_coef * lti).collect();
+    let c = pieces(2, lti, 5, n_coef, &fewer);
+    assert!(a.factors.unwrap().join(c.factors.unwrap()).is_none());
 }

@@ -1,4 +1,4 @@
-//! The Gram products of [`crate::kron_gram`]: `C += V U^T` for row-major
+//! The Gram products of [`crate::eval::kron_gram`]: `C += V U^T` for row-major
 //! `V` (`m x k`) and `U` (`p x k`) into a column-major `C`.
 //!
 //! Products of more than [`FAER_ENTRIES`] entries run on the core's own
@@ -21,7 +21,7 @@
 use faer::linalg::matmul::matmul;
 use faer::{Accum, MatMut, MatRef, Par};
 
-use crate::route::Route;
+use crate::base::route::Route;
 
 /// Rows of `C` and columns per register block of each kernel.
 const MR_512: usize = 16;
@@ -41,7 +41,7 @@ pub enum Kernel {
 }
 
 impl Kernel {
-    /// The kernel of the route the core runs ([`crate::route::Route::current`]:
+    /// The kernel of the route the core runs ([`crate::base::route::Route::current`]:
     /// the processor's widest unless `LPVID_KERNEL` asks for a narrower one).
     pub fn best() -> Kernel {
         Kernel::of(Route::current())

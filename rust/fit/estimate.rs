@@ -12,10 +12,10 @@
 //! The estimate is of the bytes a fit allocates beyond what the caller
 //! already holds (the data, the problem).
 
-use crate::kron_gram::{GramParts, KronGram};
-use crate::lanes::LANES;
-use crate::layout::{FreeSet, Matrix, Shape};
-use crate::problem::lines_per_task;
+use crate::base::lanes::LANES;
+use crate::base::layout::{FreeSet, Matrix, Shape};
+use crate::eval::kron_gram::{GramParts, KronGram};
+use crate::eval::problem::lines_per_task;
 use crate::time::BLOCK_ROWS;
 use faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch;
 use faer::Par;
@@ -84,7 +84,7 @@ const SCRATCH: usize = 8 << 20;
 
 const F64: usize = 8;
 const C64: usize = 16;
-/// A complex number per lane (`crate::lanes::Cx`).
+/// A complex number per lane (`crate::base::lanes::Cx`).
 const CX: usize = 2 * LANES * F64;
 
 /// Bytes of `n` f64.
@@ -115,7 +115,7 @@ pub fn frf_evaluation(
     // Stage 1: per thread a resolvent and a Gram accumulator, and the
     // sums of its next task; every point's running sum of its
     // tasks' parts, and the parts that wait for an earlier task of their
-    // point (`crate::point_sums`: a thread works through a run of tasks in
+    // point (`crate::eval::point_sums`: a thread works through a run of tasks in
     // order, so the parts of at most one point per thread wait), never
     // more than every task's part.
     let resolvent = CX * (n * n + 2 * n + 2 * n * r + 2 * n * l + l * r) + n * LANES;

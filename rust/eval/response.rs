@@ -1,9 +1,9 @@
 //! Batched frequency responses of an LPV model at frozen scheduling values.
 
+use crate::base::lanes::LANES;
+use crate::base::layout::Shape;
 use crate::error::{invalid, Error, Result};
-use crate::lanes::LANES;
-use crate::layout::Shape;
-use crate::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
 

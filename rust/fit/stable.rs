@@ -26,9 +26,9 @@
 //! coarse samples. Python checks the continuum afterwards
 //! (`lpvid.stability`) and adds the points it finds.
 
+use crate::base::layout::{FreeSet, Matrix, Shape};
 use crate::error::{invalid, Error, Result};
-use crate::layout::{FreeSet, Matrix, Shape};
-use crate::objective::{GaussNewton, Objective};
+use crate::eval::objective::{GaussNewton, Objective};
 use nalgebra::linalg::Schur;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C64;
@@ -123,7 +123,7 @@ impl FrozenRange {
         if stride == 0 {
             return Err(invalid("stride", "must be at least 1"));
         }
-        let psi = crate::response::with_constant(basis, n_points, nb)?;
+        let psi = crate::eval::response::with_constant(basis, n_points, nb)?;
         Ok(FrozenRange {
             nb,
             psi,
@@ -428,7 +428,8 @@ mod tests {
             .map(|k| C64::from_polar(1.0, 0.08 * k as f64))
             .collect();
         let g: Vec<C64> = z.iter().map(|&z| 1.0 / (z - 1.05)).collect();
-        let data = crate::data::FrfData::new(1, 1, 1, z, g, &vec![1.0; 39]).expect("valid data");
+        let data =
+            crate::base::data::FrfData::new(1, 1, 1, z, g, &vec![1.0; 39]).expect("valid data");
         let problem = crate::Problem::new(shape, data, &[]).expect("valid problem");
         let theta0 = vec![0.5, 1.0, 1.0, 0.0];
         let free = FreeSet::from_mask(&[true, false, false, false]);
@@ -455,7 +456,7 @@ mod tests {
         let basis: Vec<f64> = (0..m).map(|k| k as f64 / (m - 1) as f64).collect();
         let range = FrozenRange::new(1, &basis, m, 4, false).expect("valid range");
         let shape = Shape::new(1, 1, 1, 1).expect("valid shape");
-        let data = crate::data::FrfData::new(
+        let data = crate::base::data::FrfData::new(
             1,
             1,
             1,

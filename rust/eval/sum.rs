@@ -2,9 +2,9 @@
 //! together. Costs, gradients and Gauss-Newton matrices add, and so do
 //! the noise floors (each cost is already weighted by its own noise).
 
+use crate::base::layout::{FreeSet, Shape};
 use crate::error::{invalid, Result};
-use crate::layout::{FreeSet, Shape};
-use crate::objective::{GaussNewton, Objective};
+use crate::eval::objective::{GaussNewton, Objective};
 
 /// `V = V_1 + V_2 + ...` over objectives of one model shape.
 pub struct Sum<'a> {

@@ -5,8 +5,8 @@
 //! (Laub, 1981): `A = Q H Q^T` once per model, after which every frequency
 //! costs one `O(n^2)` factorisation of the Hessenberg matrix `zI - H`.
 
-use crate::lanes::{Cx, LANES};
-use crate::layout::{Matrix, Shape};
+use crate::base::lanes::{Cx, LANES};
+use crate::base::layout::{Matrix, Shape};
 use num_complex::Complex64 as C64;
 
 /// `A(p)`, `B(p)`, `C(p)`, `D(p)` at one scheduling value, column-major.

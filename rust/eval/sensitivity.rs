@@ -9,9 +9,9 @@
 //! propagation combines it with the parameter covariance folded by the
 //! basis values (see Python's `lpvid.Covariance.frf_std`).
 
+use crate::base::layout::Shape;
 use crate::error::Result;
-use crate::layout::Shape;
-use crate::response::sweep_lines;
+use crate::eval::response::sweep_lines;
 use num_complex::Complex64 as C64;
 
 /// Jacobian of the frozen frequency response with respect to the frozen LTI
@@ -71,7 +71,7 @@ pub fn lti_jacobian(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::response::frequency_response;
+    use crate::eval::response::frequency_response;
     use crate::testing::Lcg;
 
     #[test]
@@ -81,7 +81,7 @@ mod tests {
         let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.6 * rng.next_f64()).collect();
         // A stable constant part.
         for i in 0..3 {
-            theta[shape.block(crate::layout::Matrix::A, 0).start + i * 4] = -1.0 - i as f64;
+            theta[shape.block(crate::base::layout::Matrix::A, 0).start + i * 4] = -1.0 - i as f64;
         }
         let basis = [0.4];
         let z = [C64::new(0.0, 0.7), C64::new(0.0, 2.0)];
@@ -92,7 +92,7 @@ mod tests {
         // X(1) (weight psi): perturb X(0) only, which moves the frozen model by h.
         let h = 1e-6;
         let mut u = 0;
-        for x in crate::layout::Matrix::ALL {
+        for x in crate::base::layout::Matrix::ALL {
             let block = shape.block(x, 0);
             for t in block {
                 let mut plus = theta.clone();

@@ -4,15 +4,15 @@
 //! `D = diag(J^T J)` (method.md (18) with `mu = lambda^2`), by Cholesky.
 //! The damping follows the gain ratio (actual over predicted decrease).
 
-use crate::dense::{cholesky_solve, factor_lower};
+use crate::base::dense::{cholesky_solve, factor_lower};
+use crate::base::layout::FreeSet;
 use crate::error::{invalid, Result};
+use crate::eval::objective::{GaussNewton, Objective};
+use crate::eval::point_factors::FactoredSystem;
 use crate::fit::{
     check_start, norm, seconds_since, Damping, Fit, Iteration, Monitor, StepKind, Stop,
 };
-use crate::layout::FreeSet;
 use crate::memory::try_par_columns;
-use crate::objective::{GaussNewton, Objective};
-use crate::point_factors::FactoredSystem;
 use faer::{Mat, MatMut};
 use rayon::prelude::*;
 use std::time::Instant;
@@ -109,7 +109,7 @@ pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64
 
 /// The damped system of one point of a fit, whatever the damping: solved
 /// through every point's factor when the Gauss-Newton pieces carry them
-/// ([`crate::point_factors`]; `K` formed once, a rejected step refactors
+/// ([`crate::eval::point_factors`]; `K` formed once, a rejected step refactors
 /// `K + mu I` alone), else by the dense [`lm_step`].
 pub enum LmSystem {
     /// `J^T J + mu D` factored anew for every `mu`.
