@@ -110,6 +110,21 @@ def test_a_nan_is_named_by_its_point_and_line():
         lpvid.FrfData(**{**good(), "freqs_hz": np.array([1.0, 2.0, np.inf, 4.0])})
 
 
+def test_a_nan_without_named_axes_is_given_by_its_index():
+    """Arrays whose axes have no names (or more axes than names) give the index; a scalar not."""
+    from lpvid._checks import real_array
+
+    x = np.zeros((2, 3))
+    x[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"^x: contains NaN or Inf \(1 entry at index \(1, 2\)\)$"):
+        real_array(x, "x")
+    with pytest.raises(ValueError, match=r"at index \(1, 2\)\)$"):
+        real_array(x, "x", axes=("point",))
+    for axes in ((), ("point",)):
+        with pytest.raises(ValueError, match=r"^t: contains NaN or Inf \(1 entry at its value\)$"):
+            real_array(np.inf, "t", axes=axes)
+
+
 def test_bad_model_shapes_are_refused():
     basis = lpvid.Polynomial(1, domain=(0, 1))
     A, B, C, D = np.zeros((2, 3, 3)), np.ones((2, 3, 1)), np.ones((2, 2, 3)), np.zeros((2, 2, 1))
