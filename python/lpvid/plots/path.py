@@ -194,7 +194,7 @@ def accuracy_path(
         right.set_ylabel(ylabel)
         right.grid(True, alpha=0.3)
         twin = right.twinx()
-        twin.plot(
+        (kept,) = twin.plot(
             g,
             groups[pos],
             color="0.45",
@@ -204,7 +204,8 @@ def accuracy_path(
             label="groups kept (right axis)",
             gid="groups-gamma",
         )
-        twin.legend(fontsize="small", loc="upper left")
+        # drawn by the right panel, so that it is placed clear of its V_NLS lines
+        right.legend(handles=[kept], fontsize="small", loc="best")
         twin.set_ylabel("groups kept", color="0.35")
         twin.tick_params(axis="y", colors="0.35")
         twin.yaxis.get_major_locator().set_params(integer=True)
