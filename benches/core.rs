@@ -5,7 +5,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use lpvid::simulate::{simulate, simulate_zoh};
 use lpvid::testing::Lcg;
-use lpvid::{FreeSet, FrfData, Problem, Shape};
+use lpvid::{FreeSet, FrfData, ModelAt, Problem, Shape};
 use num_complex::Complex64 as C64;
 use std::hint::black_box;
 
@@ -143,10 +143,9 @@ fn bench_simulation(c: &mut Criterion) {
     group.sample_size(20);
     let (shape, theta, basis, u) = simulation_problem(1_000_000);
     let x0 = vec![0.0; shape.n];
+    let model = ModelAt::new(shape, &theta, &basis, u.len());
     group.bench_function("discrete, 1e6 samples, n=6 l=2 r=1 Nb=4", |b| {
-        b.iter(|| {
-            black_box(simulate(&shape, &theta, &basis, black_box(&u), &x0, false).expect("sim"))
-        })
+        b.iter(|| black_box(simulate(&model, black_box(&u), &x0, false).expect("sim")))
     });
     // Continuous time: a matrix exponential per sample (p varies every sample).
     let mut ct = theta.clone();
@@ -155,21 +154,9 @@ fn bench_simulation(c: &mut Criterion) {
         ct[a0.start + k * (shape.n + 1)] -= 1.5;
     }
     let t_ct = 100_000;
+    let continuous = ModelAt::new(shape, &ct, &basis[..t_ct * 4], t_ct);
     group.bench_function("continuous (ZOH), 1e5 samples, n=6 l=2 r=1 Nb=4", |b| {
-        b.iter(|| {
-            black_box(
-                simulate_zoh(
-                    &shape,
-                    &ct,
-                    &basis[..t_ct * 4],
-                    &u[..t_ct],
-                    &x0,
-                    1e-3,
-                    false,
-                )
-                .expect("sim"),
-            )
-        })
+        b.iter(|| black_box(simulate_zoh(&continuous, &u[..t_ct], &x0, 1e-3, false).expect("sim")))
     });
     group.finish();
 }

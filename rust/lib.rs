@@ -25,6 +25,7 @@ mod python;
 pub use base::data::FrfData;
 pub use base::layout::{FreeSet, Group, Matrix, Shape};
 pub use error::{Error, Result};
+pub use eval::model::ModelAt;
 pub use eval::objective::{GaussNewton, Objective};
 pub use eval::problem::Problem;
 pub use eval::response::frequency_response;

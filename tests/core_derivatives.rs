@@ -2,7 +2,7 @@
 //! finite differences of the residual, on small random problems.
 
 use lpvid::testing::Lcg;
-use lpvid::{FreeSet, FrfData, Matrix, Objective, Problem, Shape};
+use lpvid::{FreeSet, FrfData, Matrix, ModelAt, Objective, Problem, Shape};
 use num_complex::Complex64 as C64;
 
 fn problem(n: usize, r: usize, l: usize, nb: usize, discrete: bool) -> (Problem, Vec<f64>) {
@@ -176,8 +176,8 @@ fn check_rows_of(p: &Problem, theta: &[f64]) {
     let data = p.data();
     let n_points = data.n_points();
     let basis: Vec<f64> = (0..n_points).flat_map(|q| p.psi(q)[1..].to_vec()).collect();
-    let jac =
-        lpvid::eval::sensitivity::lti_jacobian(&shape, theta, &basis, n_points, data.z()).unwrap();
+    let model = ModelAt::new(shape, theta, &basis, n_points);
+    let jac = lpvid::eval::sensitivity::lti_jacobian(&model, data.z()).unwrap();
     let e = p.residual(theta).unwrap();
     let lti = shape.lti_len();
     let rows = e.len();

@@ -10,7 +10,7 @@ use lpvid::socp::{ConeProblem, ConeSolver, ConeStep};
 use lpvid::testing::{on_threads, relative_gap, Lcg};
 use lpvid::{
     frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
-    Problem, Shape, Silent,
+    ModelAt, Problem, Shape, Silent,
 };
 use num_complex::Complex64 as C64;
 
@@ -63,7 +63,7 @@ fn model() -> (Shape, Vec<f64>, Vec<C64>) {
 /// The model's data with noise, and a start near the model.
 fn problem() -> (Problem, Vec<f64>) {
     let (shape, theta, z) = model();
-    let mut g = frequency_response(&shape, &theta, &basis(), POINTS, &z).unwrap();
+    let mut g = frequency_response(&ModelAt::new(shape, &theta, &basis(), POINTS), &z).unwrap();
     let mut rng = Lcg(5);
     for v in g.iter_mut() {
         *v += 0.01 * C64::new(rng.next_f64(), rng.next_f64());

@@ -10,7 +10,8 @@ use lpvid::memory::{allocation_failure_pending, fail_allocation_after, guarded_a
 use lpvid::testing::Lcg;
 use lpvid::{
     fit_l21, frequency_response, levenberg_marquardt, Error, FreeSet, FrfData, InitialState,
-    L21Settings, LmSettings, Matrix, Objective, Problem, Record, Shape, Silent, TimeProblem,
+    L21Settings, LmSettings, Matrix, ModelAt, Objective, Problem, Record, Shape, Silent,
+    TimeProblem,
 };
 use num_complex::Complex64 as C64;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -114,7 +115,7 @@ fn problem(shape: Shape, points: usize, lines: usize) -> (Problem, Vec<f64>) {
     let z: Vec<C64> = (0..lines)
         .map(|k| C64::from_polar(1.0, 0.05 + 3.0 * k as f64 / lines as f64))
         .collect();
-    let mut g = frequency_response(&shape, &theta, &basis, points, &z).unwrap();
+    let mut g = frequency_response(&ModelAt::new(shape, &theta, &basis, points), &z).unwrap();
     g.iter_mut()
         .for_each(|v| *v += 0.01 * C64::new(rng.next_f64(), rng.next_f64()));
     let sigma = vec![0.01; g.len()];
@@ -148,9 +149,10 @@ fn time_problem(shape: Shape, samples: usize, hold: Option<f64>) -> (TimeProblem
         .collect();
     let u: Vec<f64> = (0..samples * shape.r).map(|_| rng.next_f64()).collect();
     let x0 = vec![0.0; shape.n];
+    let model = ModelAt::new(shape, &theta, &psi, samples);
     let traj = match hold {
-        None => lpvid::simulate::simulate(&shape, &theta, &psi, &u, &x0, false),
-        Some(dt) => lpvid::simulate::simulate_zoh(&shape, &theta, &psi, &u, &x0, dt, false),
+        None => lpvid::simulate::simulate(&model, &u, &x0, false),
+        Some(dt) => lpvid::simulate::simulate_zoh(&model, &u, &x0, dt, false),
     }
     .unwrap();
     let y: Vec<f64> = traj.y.iter().map(|v| v + 0.01 * rng.next_f64()).collect();

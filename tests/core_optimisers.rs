@@ -9,7 +9,7 @@ use lpvid::socp::{ConeGroup, ConeProblem, ConeSolver, WarmSteps};
 use lpvid::testing::Lcg;
 use lpvid::{
     fit_l21, frequency_response, levenberg_marquardt, Error, FreeSet, FrfData, GaussNewton,
-    L21Settings, LmSettings, Matrix, Problem, Shape, Silent,
+    L21Settings, LmSettings, Matrix, ModelAt, Problem, Shape, Silent,
 };
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64 as C64;
@@ -51,14 +51,16 @@ fn z() -> Vec<C64> {
 /// deterministic complex perturbation (in units of sigma).
 fn problem(noise: f64) -> (Problem, Vec<f64>) {
     let (shape, theta) = true_model();
-    let mut g = frequency_response(&shape, &theta, &basis(), POINTS.len(), &z()).unwrap();
+    let basis = basis();
+    let model = ModelAt::new(shape, &theta, &basis, POINTS.len());
+    let mut g = frequency_response(&model, &z()).unwrap();
     let mut rng = Lcg(5);
     for v in g.iter_mut() {
         *v += noise * SIGMA * C64::new(rng.next_f64(), rng.next_f64());
     }
     let sigma = vec![SIGMA; g.len()];
     let data = FrfData::new(POINTS.len(), 1, 1, z(), g, &sigma).unwrap();
-    (Problem::new(shape, data, &basis()).unwrap(), theta)
+    (Problem::new(shape, data, &basis).unwrap(), theta)
 }
 
 fn perturbed(theta: &[f64], size: f64, seed: u64) -> Vec<f64> {

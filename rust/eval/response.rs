@@ -1,37 +1,11 @@
 //! Batched frequency responses of an LPV model at frozen scheduling values.
 
 use crate::base::lanes::LANES;
-use crate::base::layout::Shape;
-use crate::error::{invalid, Error, Result};
+use crate::error::{Error, Result};
 use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
+use crate::eval::model::ModelAt;
 use num_complex::Complex64 as C64;
 use rayon::prelude::*;
-
-/// Prepend the constant basis function to `N x Nb` basis values, giving the
-/// `N x (Nb + 1)` rows `[1, psi_1(p[q]), ..., psi_Nb(p[q])]`.
-pub fn with_constant(basis: &[f64], n_points: usize, nb: usize) -> Result<Vec<f64>> {
-    if basis.len() != n_points * nb {
-        return Err(invalid(
-            "psi",
-            format!(
-                "expected {} basis values ({} points x {} functions), got {}",
-                n_points * nb,
-                n_points,
-                nb,
-                basis.len()
-            ),
-        ));
-    }
-    if basis.iter().any(|v| !v.is_finite()) {
-        return Err(invalid("psi", "basis values contain NaN or Inf"));
-    }
-    let mut psi = Vec::with_capacity(n_points * (nb + 1));
-    for q in 0..n_points {
-        psi.push(1.0);
-        psi.extend_from_slice(&basis[q * nb..(q + 1) * nb]);
-    }
-    Ok(psi)
-}
 
 /// Evaluate the resolvent of every frozen model at every line, `LANES`
 /// lines at a time, in parallel over the points, and let `fill` write what
@@ -39,14 +13,11 @@ pub fn with_constant(basis: &[f64], n_points: usize, nb: usize) -> Result<Vec<f6
 /// `z.len() * per_line` values: `fill(q, chunk, res, first, end)`. `sides`
 /// asks the resolvent for `X = (zI - A)^-1 B` and `Y = C (zI - A)^-1` too.
 ///
-/// Checks `theta` and `basis`; fails with [`Error::Singular`] where `zI -
-/// A(p)` cannot be inverted. Returns the `(N, F, per_line)` values.
-#[allow(clippy::too_many_arguments)]
+/// Checks the model's `theta` and basis values; fails with
+/// [`Error::Singular`] where `zI - A(p)` cannot be inverted. Returns the
+/// `(N, F, per_line)` values.
 pub(crate) fn sweep_lines<F>(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    n_points: usize,
+    model: &ModelAt<'_>,
     z: &[C64],
     per_line: usize,
     sides: bool,
@@ -55,8 +26,8 @@ pub(crate) fn sweep_lines<F>(
 where
     F: Fn(usize, &mut [C64], &Resolvent, usize, usize) -> Result<()> + Sync,
 {
-    shape.check_theta(theta)?;
-    let psi = with_constant(basis, n_points, shape.nb)?;
+    let psi = model.checked_psi()?;
+    let (shape, theta, n_points) = (&model.shape, model.theta, model.n_points);
     let m = shape.n_coef();
     let stride = z.len() * per_line;
     let what = "the frequency responses (or their derivatives) at every point and line";
@@ -84,41 +55,26 @@ where
 }
 
 /// Frequency response `C (zI - A)^-1 B + D` of the LPV model at every
-/// (point, line) pair, `(N, F, l, r)` row-major. `basis` holds the `N x Nb`
-/// basis values `psi_1..psi_Nb` at the points.
+/// (point, line) pair of the model at its `N` points, `(N, F, l, r)`
+/// row-major.
 ///
 /// Fails with [`Error::Singular`] where `zI - A(p)` cannot be inverted and
 /// with [`Error::Overflow`] where the response is not finite: never returns
 /// NaN or Inf.
-pub fn frequency_response(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    n_points: usize,
-    z: &[C64],
-) -> Result<Vec<C64>> {
-    let (l, r) = (shape.l, shape.r);
-    sweep_lines(
-        shape,
-        theta,
-        basis,
-        n_points,
-        z,
-        l * r,
-        false,
-        |q, chunk, res, first, end| {
-            for (lane, k) in (first..end).enumerate() {
-                for j in 0..l {
-                    for c in 0..r {
-                        let g = res.g[j + c * l].lane(lane);
-                        if !g.is_finite() {
-                            return Err(Error::Overflow { point: q, line: k });
-                        }
-                        chunk[(k * l + j) * r + c] = g;
+pub fn frequency_response(model: &ModelAt<'_>, z: &[C64]) -> Result<Vec<C64>> {
+    let (l, r) = (model.shape.l, model.shape.r);
+    sweep_lines(model, z, l * r, false, |q, chunk, res, first, end| {
+        for (lane, k) in (first..end).enumerate() {
+            for j in 0..l {
+                for c in 0..r {
+                    let g = res.g[j + c * l].lane(lane);
+                    if !g.is_finite() {
+                        return Err(Error::Overflow { point: q, line: k });
                     }
+                    chunk[(k * l + j) * r + c] = g;
                 }
             }
-            Ok(())
-        },
-    )
+        }
+        Ok(())
+    })
 }

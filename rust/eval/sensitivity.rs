@@ -11,61 +11,47 @@
 
 use crate::base::layout::Shape;
 use crate::error::Result;
+use crate::eval::model::ModelAt;
 use crate::eval::response::sweep_lines;
 use num_complex::Complex64 as C64;
 
 /// Jacobian of the frozen frequency response with respect to the frozen LTI
-/// parameters at every (point, line), `(N, F, l, r, lti_len)` row-major,
-/// complex. `basis` holds `psi_1..psi_Nb` at the `n_points` scheduling
-/// values, row-major.
+/// parameters at every (point, line) of the model at its `N` points,
+/// `(N, F, l, r, lti_len)` row-major, complex.
 ///
 /// With `X = (zI - A)^-1 B` and `Y = C (zI - A)^-1`:
 /// `dG_jc/dA_ab = Y_ja X_bc`, `dG_jc/dB_ac = Y_ja`, `dG_jc/dC_jb = X_bc`,
 /// `dG_jc/dD_jc = 1`; the columns follow `vec A, vec B, vec C, vec D`
 /// (column-major within each matrix).
-pub fn lti_jacobian(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    n_points: usize,
-    z: &[C64],
-) -> Result<Vec<C64>> {
+pub fn lti_jacobian(model: &ModelAt<'_>, z: &[C64]) -> Result<Vec<C64>> {
+    let shape = &model.shape;
     let Shape { n, r, l, .. } = *shape;
     let (na, nb, nc) = (n * n, n * r, l * n);
     let row = shape.lti_len();
     let per_line = l * r * row;
-    sweep_lines(
-        shape,
-        theta,
-        basis,
-        n_points,
-        z,
-        per_line,
-        true,
-        |_, chunk, res, first, end| {
-            for (lane, k) in (first..end).enumerate() {
-                for j in 0..l {
-                    for c in 0..r {
-                        let dst = &mut chunk[k * per_line + (j * r + c) * row..][..row];
-                        for b in 0..n {
-                            let xb = res.x[c * n + b].lane(lane);
-                            for a in 0..n {
-                                dst[a + b * n] = res.yt[j * n + a].lane(lane) * xb;
-                            }
-                        }
+    sweep_lines(model, z, per_line, true, |_, chunk, res, first, end| {
+        for (lane, k) in (first..end).enumerate() {
+            for j in 0..l {
+                for c in 0..r {
+                    let dst = &mut chunk[k * per_line + (j * r + c) * row..][..row];
+                    for b in 0..n {
+                        let xb = res.x[c * n + b].lane(lane);
                         for a in 0..n {
-                            dst[na + a + c * n] = res.yt[j * n + a].lane(lane);
+                            dst[a + b * n] = res.yt[j * n + a].lane(lane) * xb;
                         }
-                        for b in 0..n {
-                            dst[na + nb + j + b * l] = res.x[c * n + b].lane(lane);
-                        }
-                        dst[na + nb + nc + j + c * l] = C64::new(1.0, 0.0);
                     }
+                    for a in 0..n {
+                        dst[na + a + c * n] = res.yt[j * n + a].lane(lane);
+                    }
+                    for b in 0..n {
+                        dst[na + nb + j + b * l] = res.x[c * n + b].lane(lane);
+                    }
+                    dst[na + nb + nc + j + c * l] = C64::new(1.0, 0.0);
                 }
             }
-            Ok(())
-        },
-    )
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]
@@ -85,7 +71,7 @@ mod tests {
         }
         let basis = [0.4];
         let z = [C64::new(0.0, 0.7), C64::new(0.0, 2.0)];
-        let jac = lti_jacobian(&shape, &theta, &basis, 1, &z).expect("evaluates");
+        let jac = lti_jacobian(&ModelAt::new(shape, &theta, &basis, 1), &z).expect("evaluates");
         let lti = shape.lti_len();
         let (l, r) = (shape.l, shape.r);
         // The LTI parameter u maps to theta entries of X(0) (weight 1) and
@@ -99,8 +85,9 @@ mod tests {
                 let mut minus = theta.clone();
                 plus[t] += h;
                 minus[t] -= h;
-                let gp = frequency_response(&shape, &plus, &basis, 1, &z).expect("evaluates");
-                let gm = frequency_response(&shape, &minus, &basis, 1, &z).expect("evaluates");
+                let at = |theta| ModelAt::new(shape, theta, &basis, 1);
+                let gp = frequency_response(&at(&plus), &z).expect("evaluates");
+                let gm = frequency_response(&at(&minus), &z).expect("evaluates");
                 for k in 0..z.len() {
                     for e in 0..l * r {
                         let fd = (gp[k * l * r + e] - gm[k * l * r + e]) / (2.0 * h);

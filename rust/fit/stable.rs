@@ -123,7 +123,7 @@ impl FrozenRange {
         if stride == 0 {
             return Err(invalid("stride", "must be at least 1"));
         }
-        let psi = crate::eval::response::with_constant(basis, n_points, nb)?;
+        let psi = crate::eval::model::with_constant(basis, n_points, nb)?;
         Ok(FrozenRange {
             nb,
             psi,

@@ -8,7 +8,7 @@ use crate::error::Error;
 use crate::eval::objective::GaussNewton;
 use crate::fit::Silent;
 use crate::testing::Lcg;
-use crate::{frequency_response, FrfData, Problem};
+use crate::{frequency_response, FrfData, ModelAt, Problem};
 use num_complex::Complex64 as C64;
 
 // ------------------------------------------------------------ problems
@@ -123,7 +123,7 @@ fn frf_problem() -> (Problem, Vec<f64>) {
     let z: Vec<C64> = (0..20)
         .map(|k| C64::from_polar(1.0, 0.05 + 3.0 * k as f64 / 19.0))
         .collect();
-    let mut g = frequency_response(&shape, &theta, &psi, points.len(), &z).unwrap();
+    let mut g = frequency_response(&ModelAt::new(shape, &theta, &psi, points.len()), &z).unwrap();
     let mut rng = Lcg(5);
     g.iter_mut()
         .for_each(|v| *v += 0.01 * C64::new(rng.next_f64(), rng.next_f64()));

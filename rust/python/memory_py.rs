@@ -17,6 +17,7 @@ use pyo3::types::PyDict;
 /// the time records.
 #[pyfunction]
 #[pyo3(name = "fit_memory", signature = (shape, method, free=None, frf=None, records=None, hold=false, estimate_x0=false, pinned=false))]
+// One Rust parameter per Python parameter (PyO3), and Python's signature stays.
 #[allow(clippy::too_many_arguments)]
 fn fit_memory_py<'py>(
     py: Python<'py>,

@@ -1,10 +1,12 @@
 //! The model as the bindings see it: one [`PyModelView`] (shape, parameters
-//! and basis values), built once by Python (`lpvid.model._view.model_view`) and
-//! checked at construction, and the shape alone ([`ShapeArg`]) for the
+//! and basis values), built once by Python (`lpvid.model._view.model_view`),
+//! checked at construction and handed to the core as one [`ModelAt`], and
+//! the shape alone ([`ShapeArg`]) for the
 //! bindings that take no basis values (time records, memory estimates).
 
 use super::convert::flat;
 use crate::base::layout::Shape;
+use crate::eval::model::ModelAt;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -95,32 +97,24 @@ impl PyModelView {
 }
 
 impl PyModelView {
-    /// The checked shape.
-    pub fn shape(&self) -> &Shape {
-        &self.shape
-    }
-
-    /// The parameters (length checked; finiteness is the core's to check).
-    pub fn theta(&self) -> &[f64] {
-        &self.theta
-    }
-
-    /// Number of scheduling points.
-    pub fn n_points(&self) -> usize {
-        self.n_points
-    }
-
-    /// Run `work` on the basis values, flat row-major `N x Nb`: borrowed
-    /// when the array is contiguous, copied otherwise.
-    pub fn with_basis<T>(
+    /// Run `work` on the core's view of the model: the checked shape, the
+    /// parameters (length checked; finiteness is the core's to check) and
+    /// the basis values, flat row-major `N x Nb`, borrowed when the array
+    /// is contiguous and copied otherwise.
+    pub fn with_model<T>(
         &self,
         py: Python<'_>,
-        work: impl FnOnce(&[f64]) -> PyResult<T>,
+        work: impl FnOnce(ModelAt<'_>) -> PyResult<T>,
     ) -> PyResult<T> {
         let array = self.basis.bind(py).try_readonly().map_err(|e| {
             PyValueError::new_err(format!("psi: the basis values cannot be read: {e}"))
         })?;
         let values: Cow<'_, [f64]> = flat(&array);
-        work(&values)
+        work(ModelAt::new(
+            self.shape,
+            &self.theta,
+            &values,
+            self.n_points,
+        ))
     }
 }

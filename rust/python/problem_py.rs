@@ -18,12 +18,10 @@ fn frequency_response_py<'py>(
     view: &Bound<'py, PyModelView>,
     z: PyReadonlyArray1<'py, Complex64>,
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
-    let view = view.get();
-    let (shape, theta, n_points) = (view.shape(), view.theta(), view.n_points());
     let z = complex_vec(&z);
-    let out = view.with_basis(py, |basis| {
-        detached(py, || frequency_response(shape, theta, basis, n_points, &z))
-    })?;
+    let out = view
+        .get()
+        .with_model(py, |model| detached(py, || frequency_response(&model, &z)))?;
     Ok(to_py(py, out))
 }
 
@@ -46,13 +44,12 @@ impl PyProblem {
         g: PyReadonlyArray1<'_, Complex64>,
         sigma: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<Self> {
-        let view = view.get();
-        let (shape, n_points) = (*view.shape(), view.n_points());
         let (z, g, sigma) = (complex_vec(&z), complex_vec(&g), real_vec(&sigma));
-        let inner = view.with_basis(py, |basis| {
+        let inner = view.get().with_model(py, |model| {
             guarded(|| {
-                let data = FrfData::new(n_points, shape.l, shape.r, z, g, &sigma)?;
-                Problem::new(shape, data, basis)
+                let shape = model.shape;
+                let data = FrfData::new(model.n_points, shape.l, shape.r, z, g, &sigma)?;
+                Problem::new(shape, data, model.basis)
             })
         })?;
         Ok(PyProblem { inner })

@@ -32,13 +32,11 @@ fn simulate_py<'py>(
     Option<Bound<'py, PyArray1<f64>>>,
     Option<usize>,
 )> {
-    let view = view.get();
-    let (shape, theta) = (view.shape(), view.theta());
     let (u, x0) = (flat(&u), flat(&x0));
-    let traj = view.with_basis(py, |basis| {
+    let traj = view.get().with_model(py, |model| {
         detached(py, || match dt {
-            None => simulate(shape, theta, basis, &u, &x0, states),
-            Some(dt) => simulate_zoh(shape, theta, basis, &u, &x0, dt, states),
+            None => simulate(&model, &u, &x0, states),
+            Some(dt) => simulate_zoh(&model, &u, &x0, dt, states),
         })
     })?;
     Ok((

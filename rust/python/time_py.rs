@@ -50,6 +50,7 @@ fn stage_dict<'py>(py: Python<'py>, t: &StageTimes) -> PyResult<Bound<'py, PyDic
 impl PyTimeProblem {
     #[new]
     #[pyo3(signature = (shape, u, psi, y, sigma, dt=None, x0="estimate", x0_values=None, skip=0))]
+    // One Rust parameter per Python parameter (PyO3), and Python's signature stays.
     #[allow(clippy::too_many_arguments)]
     fn new(
         shape: ShapeArg,

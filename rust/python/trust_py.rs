@@ -20,12 +20,10 @@ fn lti_jacobian_py<'py>(
     view: &Bound<'py, PyModelView>,
     z: PyReadonlyArray1<'py, Complex64>,
 ) -> PyResult<Bound<'py, PyArray1<Complex64>>> {
-    let view = view.get();
-    let (shape, theta, n_points) = (view.shape(), view.theta(), view.n_points());
     let z = complex_vec(&z);
-    let out = view.with_basis(py, |basis| {
-        detached(py, || lti_jacobian(shape, theta, basis, n_points, &z))
-    })?;
+    let out = view
+        .get()
+        .with_model(py, |model| detached(py, || lti_jacobian(&model, &z)))?;
     Ok(to_py(py, out))
 }
 
@@ -65,12 +63,12 @@ impl PyFrozenRange {
         if !(tol.is_finite() && tol >= 0.0) {
             return Err(invalid("tol", format!("expected a finite number >= 0, got {tol}")).into());
         }
-        let view = view.get();
-        let (shape, n_points) = (*view.shape(), view.n_points());
-        let inner = view.with_basis(py, |basis| {
-            guarded(|| {
-                FrozenRange::new(shape.nb, basis, n_points, stride, discrete)?.with_floor(floor)
-            })
+        let (inner, shape) = view.get().with_model(py, |model| {
+            let (nb, basis, n_points) = (model.shape.nb, model.basis, model.n_points);
+            let inner = guarded(|| {
+                FrozenRange::new(nb, basis, n_points, stride, discrete)?.with_floor(floor)
+            })?;
+            Ok((inner, model.shape))
         })?;
         Ok(PyFrozenRange { inner, tol, shape })
     }

@@ -7,6 +7,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use crate::base::layout::{Matrix, Shape};
+use crate::eval::model::ModelAt;
 
 /// Outputs `y` and, when asked for, states `x` (as in [`super::Trajectory`]).
 pub(super) type Outputs = (Vec<f64>, Option<Vec<f64>>);
@@ -33,15 +34,14 @@ pub(super) const DYN: usize = usize::MAX;
 /// The fast path with the number of basis functions fixed at compile time
 /// when it is at most 4.
 pub(super) fn lanes_by_nb<const K: usize>(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
+    model: &ModelAt<'_>,
     u: &[f64],
     x0: &[f64],
     states: bool,
 ) -> Outputs {
-    let lanes = Lanes::<K>::new(shape, theta);
-    match shape.nb {
+    let lanes = Lanes::<K>::new(&model.shape, model.theta);
+    let basis = model.basis;
+    match model.shape.nb {
         0 => lanes.simulate::<0>(basis, u, x0, states),
         1 => lanes.simulate::<1>(basis, u, x0, states),
         2 => lanes.simulate::<2>(basis, u, x0, states),

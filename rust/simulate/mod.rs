@@ -46,6 +46,7 @@ pub use zoh::{expm, simulate_zoh};
 
 use crate::base::layout::Shape;
 use crate::error::{invalid, Result};
+use crate::eval::model::ModelAt;
 use kernel::{lanes_by_nb, Lanes, DYN};
 use wide::simulate_wide;
 
@@ -101,16 +102,12 @@ fn all_finite(v: &[f64]) -> bool {
         .all(|c| c.iter().fold(true, |ok, a| ok & a.is_finite()))
 }
 
-/// Check the sizes of a simulation's arguments and that `theta` and `x0`
-/// are finite; returns the number of samples `T`.
-fn check_sizes(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    u: &[f64],
-    x0: &[f64],
-) -> Result<usize> {
-    shape.check_theta(theta)?;
+/// Check the sizes of a simulation's arguments (the basis values against
+/// the number of samples `T` that `u` gives) and that `theta` and `x0` are
+/// finite; returns `T`.
+fn check_sizes(model: &ModelAt<'_>, u: &[f64], x0: &[f64]) -> Result<usize> {
+    let (shape, basis) = (&model.shape, model.basis);
+    shape.check_theta(model.theta)?;
     let (n, r, nb) = (shape.n, shape.r, shape.nb);
     if !u.len().is_multiple_of(r) {
         return Err(invalid(
@@ -167,35 +164,31 @@ fn trajectory_fits(shape: &Shape, t_len: usize, states: bool) -> Result<()> {
 
 /// Simulate a discrete-time LPV model.
 ///
-/// `basis` holds the `T x Nb` values `psi_1..psi_Nb` at `p(0..T)`
-/// (row-major), `u` the `T x r` inputs (row-major) and `x0` the initial
-/// state; with `states` the trajectory keeps `x(0..=T)`. Unstable models
-/// give non-finite values, not an error: [`Trajectory::diverged`] names
-/// the first sample where they appear.
-pub fn simulate(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    u: &[f64],
-    x0: &[f64],
-    states: bool,
-) -> Result<Trajectory> {
-    let t_len = check_sizes(shape, theta, basis, u, x0)?;
+/// `model` is the model at `p(0..T)`: its basis values are the `T x Nb`
+/// values `psi_1..psi_Nb` (row-major), `T` being the number of samples
+/// that `u` gives (the basis values are checked against it; `n_points` is
+/// not read). `u` holds the `T x r` inputs (row-major) and `x0` the
+/// initial state; with `states` the trajectory keeps `x(0..=T)`. Unstable
+/// models give non-finite values, not an error: [`Trajectory::diverged`]
+/// names the first sample where they appear.
+pub fn simulate(model: &ModelAt<'_>, u: &[f64], x0: &[f64], states: bool) -> Result<Trajectory> {
+    let t_len = check_sizes(model, u, x0)?;
+    let (shape, theta, basis) = (&model.shape, model.theta, model.basis);
     trajectory_fits(shape, t_len, states)?;
     // Monomorphised kernels: K = ceil((n + l) / 4) register blocks and,
     // for K <= 4, the number of basis functions (small models are the
     // common case; the rest runs with Nb known at run time).
     let (y, x) = match (shape.n + shape.l).div_ceil(4) {
-        1 => lanes_by_nb::<1>(shape, theta, basis, u, x0, states),
-        2 => lanes_by_nb::<2>(shape, theta, basis, u, x0, states),
-        3 => lanes_by_nb::<3>(shape, theta, basis, u, x0, states),
-        4 => lanes_by_nb::<4>(shape, theta, basis, u, x0, states),
+        1 => lanes_by_nb::<1>(model, u, x0, states),
+        2 => lanes_by_nb::<2>(model, u, x0, states),
+        3 => lanes_by_nb::<3>(model, u, x0, states),
+        4 => lanes_by_nb::<4>(model, u, x0, states),
         5 => Lanes::<5>::new(shape, theta).simulate::<DYN>(basis, u, x0, states),
         6 => Lanes::<6>::new(shape, theta).simulate::<DYN>(basis, u, x0, states),
         7 => Lanes::<7>::new(shape, theta).simulate::<DYN>(basis, u, x0, states),
         8 => Lanes::<8>::new(shape, theta).simulate::<DYN>(basis, u, x0, states),
         _ => {
-            let (y, x) = simulate_wide(shape, theta, basis, u, x0);
+            let (y, x) = simulate_wide(model, u, x0);
             (y, states.then_some(x))
         }
     };
@@ -219,6 +212,11 @@ mod tests {
     use crate::error::Error;
     use crate::eval::lti::Frozen;
     use crate::testing::Lcg;
+
+    /// The model along the `T` samples of `u`.
+    fn along<'a>(shape: &Shape, theta: &'a [f64], basis: &'a [f64], u: &[f64]) -> ModelAt<'a> {
+        ModelAt::new(*shape, theta, basis, u.len() / shape.r)
+    }
 
     fn model(n: usize, r: usize, l: usize, nb: usize, a0: f64) -> (Shape, Vec<f64>) {
         let shape = Shape::new(n, r, l, nb).unwrap();
@@ -297,10 +295,11 @@ mod tests {
             let x0: Vec<f64> = (0..n).map(|_| rng.next_f64()).collect();
             let (y, x) = naive(&shape, &theta, &basis, &u, &x0);
             let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
-            let with = simulate(&shape, &theta, &basis, &u, &x0, true).unwrap();
+            let at = along(&shape, &theta, &basis, &u);
+            let with = simulate(&at, &u, &x0, true).unwrap();
             assert_close(&with.y, &y, scale);
             assert_close(with.x.as_deref().unwrap(), &x, scale);
-            let without = simulate(&shape, &theta, &basis, &u, &x0, false).unwrap();
+            let without = simulate(&at, &u, &x0, false).unwrap();
             assert_eq!(without.y, with.y);
             assert!(without.x.is_none());
         }
@@ -327,14 +326,15 @@ mod tests {
         let t_len = 2000;
         let basis = vec![0.1; t_len];
         let u = vec![1.0; t_len];
-        let traj = simulate(&shape, &theta, &basis, &u, &[0.0, 0.0], false).unwrap();
+        let at = along(&shape, &theta, &basis, &u);
+        let traj = simulate(&at, &u, &[0.0, 0.0], false).unwrap();
         let first = traj.y.iter().position(|v| !v.is_finite()).unwrap();
         assert_eq!(traj.diverged, Some(first));
         let mut bad = basis.clone();
         bad[1234] = f64::INFINITY;
         let (shape, theta) = model(2, 1, 1, 1, 0.5);
         assert!(matches!(
-            simulate(&shape, &theta, &bad, &u, &[0.0, 0.0], false),
+            simulate(&along(&shape, &theta, &bad, &u), &u, &[0.0, 0.0], false),
             Err(Error::InvalidArgument { name: "psi", .. })
         ));
     }
@@ -347,10 +347,11 @@ mod tests {
         let shape = Shape::new(1, 1, 1, 0).unwrap();
         let theta = vec![10.0, 0.0, 1.0, 0.0];
         let u = vec![0.0; 400];
-        let traj = simulate(&shape, &theta, &[], &u, &[1.0], false).unwrap();
+        let at = along(&shape, &theta, &[], &u);
+        let traj = simulate(&at, &u, &[1.0], false).unwrap();
         assert_eq!(traj.diverged, Some(309));
         assert!(traj.y[308].is_finite() && traj.y[308] > 9e307);
-        let traj = simulate(&shape, &theta, &[], &u, &[1.0], true).unwrap();
+        let traj = simulate(&at, &u, &[1.0], true).unwrap();
         assert_eq!(traj.diverged, Some(308));
         // The same on the wide path (n + l > 32), where the state of a
         // larger diagonal model diverges the same way.
@@ -360,17 +361,23 @@ mod tests {
             theta[shape.block(Matrix::A, 0).start + k * 18] = 10.0;
             theta[shape.block(Matrix::C, 0).start + k * 18] = 1.0;
         }
-        let traj = simulate(&shape, &theta, &[], &u, &[1.0; 17], false).unwrap();
+        let traj = simulate(&along(&shape, &theta, &[], &u), &u, &[1.0; 17], false).unwrap();
         assert_eq!(traj.diverged, Some(309));
-        let stable = simulate(&shape, &theta, &[], &u[..300], &[1.0; 17], true).unwrap();
+        let short = &u[..300];
+        let stable = simulate(&along(&shape, &theta, &[], short), short, &[1.0; 17], true).unwrap();
         assert_eq!(stable.diverged, None);
     }
 
     #[test]
     fn bad_sizes_and_values_are_named() {
         let (shape, theta) = model(2, 2, 1, 1, 0.5);
+        // The basis values at as many points as they have rows: `simulate`
+        // checks them against the samples of `u`.
         let err = |basis: &[f64], u: &[f64], x0: &[f64]| match simulate(
-            &shape, &theta, basis, u, x0, false,
+            &ModelAt::new(shape, &theta, basis, basis.len()),
+            u,
+            x0,
+            false,
         ) {
             Err(Error::InvalidArgument { name, .. }) => name,
             other => panic!("expected an error, got {other:?}"),

@@ -8,6 +8,7 @@
 
 use super::BLOCK;
 use crate::base::layout::{Matrix, Shape};
+use crate::eval::model::ModelAt;
 use rayon::prelude::*;
 
 /// The coefficient matrices of one state-space matrix side by side,
@@ -77,13 +78,8 @@ fn kron(psi: &[f64], v: &[f64], out: &mut [f64]) {
 
 /// The general path (any size): input term and outputs in bulk, in
 /// parallel over blocks of samples; the state recursion in order.
-pub(super) fn simulate_wide(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    u: &[f64],
-    x0: &[f64],
-) -> (Vec<f64>, Vec<f64>) {
+pub(super) fn simulate_wide(model: &ModelAt<'_>, u: &[f64], x0: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let (shape, theta, basis) = (&model.shape, model.theta, model.basis);
     let (n, r, nb) = (shape.n, shape.r, shape.nb);
     let t_len = u.len() / r;
     let mut x = vec![0.0; (t_len + 1) * n];
@@ -113,18 +109,13 @@ pub(super) fn simulate_wide(
         kron(&basis[t * nb..(t + 1) * nb], &past[t * n..], &mut kx);
         a.apply_add(&kx, &mut next[..n]);
     }
-    let y = outputs(shape, theta, basis, u, &x);
+    let y = outputs(model, u, &x);
     (y, x)
 }
 
 /// `y(t) = C(p(t)) x(t) + D(p(t)) u(t)` for every sample, in bulk.
-pub(super) fn outputs(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
-    u: &[f64],
-    x: &[f64],
-) -> Vec<f64> {
+pub(super) fn outputs(model: &ModelAt<'_>, u: &[f64], x: &[f64]) -> Vec<f64> {
+    let (shape, theta, basis) = (&model.shape, model.theta, model.basis);
     let (n, r, l, nb) = (shape.n, shape.r, shape.l, shape.nb);
     let t_len = u.len() / r;
     let c = Wide::new(shape, theta, Matrix::C);

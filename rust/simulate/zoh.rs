@@ -6,6 +6,7 @@ use super::wide::{dot, outputs, Wide};
 use super::{check_sizes, check_values, finish, Trajectory, BLOCK};
 use crate::base::layout::{Matrix, Shape};
 use crate::error::{invalid, Error, Result};
+use crate::eval::model::ModelAt;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -17,15 +18,14 @@ const ZOH_BLOCK: usize = 256;
 /// `p` over samples of `dt` seconds (see the module documentation of
 /// [`super`]). Other arguments as for [`super::simulate`].
 pub fn simulate_zoh(
-    shape: &Shape,
-    theta: &[f64],
-    basis: &[f64],
+    model: &ModelAt<'_>,
     u: &[f64],
     x0: &[f64],
     dt: f64,
     states: bool,
 ) -> Result<Trajectory> {
-    let t_len = check_sizes(shape, theta, basis, u, x0)?;
+    let t_len = check_sizes(model, u, x0)?;
+    let (shape, theta, basis) = (&model.shape, model.theta, model.basis);
     check_values(basis, u)?;
     // The states are always kept here.
     super::trajectory_fits(shape, t_len, true)?;
@@ -76,7 +76,7 @@ pub fn simulate_zoh(
             }
         }
     }
-    let y = outputs(shape, theta, basis, u, &x);
+    let y = outputs(model, u, &x);
     Ok(finish(shape, y, x, states))
 }
 
@@ -264,7 +264,8 @@ mod tests {
         let dt = 0.05;
         let basis = vec![0.0, 0.5, 0.5, -1.0];
         let u = vec![1.0, -2.0, 0.5, 4.0];
-        let traj = simulate_zoh(&shape, &theta, &basis, &u, &[0.2], dt, true).unwrap();
+        let at = ModelAt::new(shape, &theta, &basis, u.len());
+        let traj = simulate_zoh(&at, &u, &[0.2], dt, true).unwrap();
         let xs = traj.x.unwrap();
         let mut x = 0.2;
         for t in 0..4 {
@@ -281,7 +282,13 @@ mod tests {
         let shape = Shape::new(2, 2, 1, 1).unwrap();
         let theta = vec![0.1; shape.len()];
         assert!(matches!(
-            simulate_zoh(&shape, &theta, &[0.0; 3], &[0.0; 6], &[0.0; 2], 0.0, false),
+            simulate_zoh(
+                &ModelAt::new(shape, &theta, &[0.0; 3], 3),
+                &[0.0; 6],
+                &[0.0; 2],
+                0.0,
+                false
+            ),
             Err(Error::InvalidArgument { name: "dt", .. })
         ));
     }

@@ -31,7 +31,6 @@ fn group(at: &[usize], phi: f64, varphi: f64) -> ConeGroup {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 fn case(
     p: DMatrix<f64>,
     q: DVector<f64>,

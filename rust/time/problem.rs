@@ -8,6 +8,7 @@ use super::sensitivity::{Normal, Pass};
 use super::StageTimes;
 use crate::base::layout::{FreeSet, Shape};
 use crate::error::{invalid, Result};
+use crate::eval::model::ModelAt;
 use crate::eval::objective::{GaussNewton, Objective};
 use crate::memory::try_vec;
 use crate::simulate::{simulate, simulate_zoh, Trajectory};
@@ -132,9 +133,10 @@ impl TimeProblem {
     /// sample when the model leaves the finite numbers.
     fn simulate(&self, theta: &[f64], k: usize, x0: &[f64], states: bool) -> Result<Trajectory> {
         let rec = &self.records[k];
+        let model = ModelAt::new(self.shape, theta, rec.psi(), rec.len());
         let traj = match self.hold {
-            None => simulate(&self.shape, theta, rec.psi(), rec.u(), x0, states),
-            Some(dt) => simulate_zoh(&self.shape, theta, rec.psi(), rec.u(), x0, dt, states),
+            None => simulate(&model, rec.u(), x0, states),
+            Some(dt) => simulate_zoh(&model, rec.u(), x0, dt, states),
         }?;
         let l = self.shape.l;
         if let Some(t) = traj
