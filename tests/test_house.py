@@ -203,7 +203,7 @@ def test_folders_missing_from_the_map_or_absent_are_named(tmp_path, capsys):
     assert house.main([str(root)]) == 1
     out = capsys.readouterr().out
     assert "package map: python/lpvid/top/ has no row in README.md's map" in out
-    assert "package map: README.md names gone/, which is not a folder of python/lpvid" in out
+    assert "package map: README.md's map names gone/, which is not a folder of python/lpvid" in out
 
 
 def test_a_readme_without_a_map_fails(tmp_path, capsys):

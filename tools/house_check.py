@@ -362,6 +362,16 @@ def package_map(readme: str, mark: str = MAP_MARK) -> dict[str, set[str]] | None
     return found
 
 
+def row_breaks(
+    rule: str, table: str, root: str, folders: set[str], the_map: Mapping[str, set[str]]
+) -> list[str]:
+    """One line per folder of ``root`` without a row in ``table``, and per row without a folder."""
+    return [f"{rule}: {root}/{f}/ has no row in {table}" for f in folders - set(the_map)] + [
+        f"{rule}: {table} names {f}/, which is not a folder of {root}"
+        for f in set(the_map) - folders
+    ]
+
+
 def map_breaks(
     graph: Mapping[str, Iterable[str]], folders: Iterable[str], the_map: Mapping[str, set[str]]
 ) -> list[str]:
@@ -384,14 +394,7 @@ def map_breaks(
         docstring), sorted.
     """
     folders = set(folders)
-    breaks = [
-        f"package map: python/lpvid/{f}/ has no row in README.md's map"
-        for f in folders - set(the_map)
-    ]
-    breaks += [
-        f"package map: README.md names {f}/, which is not a folder of python/lpvid"
-        for f in set(the_map) - folders
-    ]
+    breaks = row_breaks("package map", "README.md's map", "python/lpvid", folders, the_map)
 
     def place(module: str) -> str:
         parts = module.split(".")
@@ -520,13 +523,7 @@ def rust_map_breaks(
         each other (see the module's docstring), sorted.
     """
     folders = set(folders)
-    breaks = [
-        f"rust map: rust/{f}/ has no row in README.md's Rust map" for f in folders - set(the_map)
-    ]
-    breaks += [
-        f"rust map: README.md's Rust map names {f}/, which is not a folder of rust"
-        for f in set(the_map) - folders
-    ]
+    breaks = row_breaks("rust map", "README.md's Rust map", "rust", folders, the_map)
     between: dict[str, set[str]] = {f: set() for f in folders}
     for path, used in graph.items():
         here = path.split("/")[0]
