@@ -133,6 +133,40 @@ def test_identify_and_select_take_their_held_arguments_from_the_one_record():
     assert given.given() == ["routes", "stable"]  # a list is not the default tuple
 
 
+def test_the_record_makes_the_problem_with_every_argument(small):
+    """Each argument reaches the problem's settings; left out, each has identify's default."""
+    from lpvid.fit.settings import DEFAULT_GAMMAS
+    from lpvid.pipeline.problem import IdentifyArguments
+
+    data, _, basis = small
+    given = IdentifyArguments(
+        order=2,
+        basis=basis,
+        gammas=[0.1, 0.01],
+        routes=("plain",),
+        forms=("modal",),
+        tolerance=0.3,
+        settings=lpvid.L21Settings(max_outer=3),
+        stable=True,
+        refit=False,
+    )
+    s = given.problem(data).settings
+    assert s.path.gammas == (0.1, 0.01) and s.path.tolerance == 0.3
+    assert s.path.l21 == lpvid.L21Settings(max_outer=3)
+    assert s.starts.routes == ("plain",) and s.starts.forms == ("modal",)
+    assert s.stable is True and s.refit is False
+    d = IdentifyArguments(order=2, basis=basis).problem(data).settings
+    assert d.path.l21 == lpvid.L21Settings(max_outer=10)
+    assert d.path.gammas == tuple(DEFAULT_GAMMAS) and d.path.tolerance == 0.1
+    assert d.starts == lpvid.StartSettings() and d.stable is False and d.refit is True
+    with pytest.raises(
+        TypeError,
+        match=r"^refit: the problem holds these; give them to "
+        r"lpvid.Problem \(or problem.replace\(...\)\), not beside it$",
+    ):
+        IdentifyArguments(refit=False).refuse()
+
+
 def test_defaults_in_one_place_and_visible(small):
     data, _, basis = small
     s = lpvid.Problem(data, 2, basis).settings
