@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid.data.schedule import range_fraction
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
 from lpvid.stable.boxsos import Exp, program_size, solve_box
@@ -112,13 +113,9 @@ class RateCertificate:
         return self.scales or ("linear",) * len(self.p_range)
 
     def _t(self, p: Any) -> NDArray[np.float64]:
-        p = np.atleast_1d(np.asarray(p, dtype=float))
-        out = []
-        for x, (lo, hi), scale in zip(p, self.p_range, self._scales(), strict=True):
-            if scale == "log":
-                x, lo, hi = np.log10(x), np.log10(lo), np.log10(hi)
-            out.append(0.0 if hi == lo else 2.0 * (x - lo) / (hi - lo) - 1.0)
-        return np.array(out)
+        """``p`` mapped to [-1, 1] on every parameter's scale (the program's variables)."""
+        row = np.atleast_1d(np.asarray(p, dtype=float))[None, :]
+        return 2.0 * range_fraction(row, self.p_range, self._scales())[0] - 1.0
 
     def P_at(self, p: Any) -> NDArray[np.float64]:
         """``P(p)`` at one scheduling value (``Np`` numbers)."""
