@@ -114,11 +114,7 @@ def with_log_twins(bases: list[Basis], axes: list[bool]) -> list[Basis]:
         ):
             continue
         scale = ["log" if a else "linear" for a in axes]
-        twin: Basis
-        if isinstance(b, Polynomial):
-            twin = Polynomial(b.degree, b.domain, scale=scale)
-        else:
-            twin = Legendre(b.degree, b.domain, scale=scale)
+        twin = type(b)(b.degree, b.domain, scale=scale)
         if twin not in bases and twin not in out:
             out.append(twin)
     return out
