@@ -2,8 +2,8 @@
 //! frequency-response data at frozen scheduling values, with reweighted
 //! l2,1-norm regularisation (Turk, Gillis, Pipeleers and Swevers, 2018).
 //!
-//! The numerical core knows nothing of Python; the binding lives in
-//! [`python`] behind the `python` feature.
+//! The numerical core knows nothing of Python; the binding lives in the
+//! private `python` module, behind the `python` feature.
 
 #![warn(missing_docs)]
 

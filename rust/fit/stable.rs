@@ -210,7 +210,7 @@ impl FrozenRange {
 
     /// The smallest margin found and its check point: every `stride`-th
     /// point, then every point between the coarse neighbours of the
-    /// [`REFINED_MINIMA`] smallest local minima. Stops early when a coarse
+    /// `REFINED_MINIMA` smallest local minima. Stops early when a coarse
     /// point is below `tol`.
     pub fn worst(&self, shape: &Shape, theta: &[f64], tol: f64) -> Result<(usize, f64)> {
         self.check_shape(shape, theta)?;

@@ -16,7 +16,7 @@ pub enum Weighting {
     Plain,
 }
 
-/// Settings of [`fit_l21`].
+/// Settings of [`fit_l21`](crate::l21::fit_l21).
 #[derive(Debug, Clone, Copy)]
 pub struct L21Settings {
     /// Regularisation weight (normalised: multiplies the penalty next to `V_NLS / M`).

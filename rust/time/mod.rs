@@ -18,14 +18,14 @@
 //! dBd(t) u(t))`, its output sensitivity is `C(t) s(t)`, and parameters of
 //! `C(i)` and `D(i)` enter the output directly. In discrete time
 //! `dAd = psi_i(t) e_a e_b^T`; in continuous time the forcing is the
-//! Fréchet derivative of the matrix exponential ([`hold`]). Only `J^T J`
+//! Fréchet derivative of the matrix exponential (`hold`). Only `J^T J`
 //! and `J^T r` are kept, summed block of samples by block of samples
-//! ([`sensitivity`]).
+//! (`sensitivity`).
 //!
 //! Initial states: zero, given, or estimated per record. Estimated ones
 //! are eliminated exactly: the cost at `theta` is the least cost over the
 //! initial states, and the Gauss-Newton matrix is the Schur complement of
-//! the initial-state block ([`schur`]). A model whose simulation leaves
+//! the initial-state block (`schur`). A model whose simulation leaves
 //! the finite numbers is an error naming the record and the sample (a
 //! rejected step inside a fit).
 
