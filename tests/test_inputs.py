@@ -25,6 +25,15 @@ def test_good_data_is_accepted():
     assert (d.n_points, d.n_lines, d.n_outputs, d.n_inputs, d.n_residuals) == (3, 4, 2, 1, 24)
 
 
+def test_p_rows_holds_one_row_per_point_for_one_parameter_or_several():
+    one = lpvid.FrfData(**good())
+    assert one.p_rows.shape == (3, 1)
+    np.testing.assert_array_equal(one.p_rows[:, 0], one.p)
+    two = lpvid.FrfData(**{**good(), "p": np.array([[0.0, 1.0], [0.5, 2.0], [1.0, 0.0]])})
+    assert two.p_rows.shape == (3, 2)
+    np.testing.assert_array_equal(two.p_rows, two.p)
+
+
 @pytest.mark.parametrize(
     "change, exc, match",
     [

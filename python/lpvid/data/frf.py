@@ -171,6 +171,11 @@ class FrfData:
         return 1 if self.p.ndim == 1 else int(self.p.shape[1])
 
     @property
+    def p_rows(self) -> NDArray[np.float64]:
+        """The scheduling values as rows, shape (N, Np), one parameter or several (a view)."""
+        return self.p.reshape(self.n_points, -1)
+
+    @property
     def n_residuals(self) -> int:
         """Number of complex residuals ``N F l r``: the noise floor of V_NLS."""
         return int(self.G.size)
@@ -276,7 +281,7 @@ class FrfData:
         if all(d.p.ndim == 1 for d in items):
             p = np.concatenate([d.p for d in items])
         else:
-            p = np.concatenate([d.p.reshape(d.n_points, -1) for d in items])
+            p = np.concatenate([d.p_rows for d in items])
         G = np.concatenate([d.G for d in items])
         sigma = np.concatenate([d.sigma for d in items])
         try:

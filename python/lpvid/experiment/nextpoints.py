@@ -240,7 +240,7 @@ def _noise(
         if np.any(s <= 0):
             raise ValueError("sigma: standard deviations must be > 0 everywhere")
         return np.broadcast_to(s, (len(candidates), *shape))
-    measured = range_fraction(data.p.reshape(data.n_points, -1), pairs, scales)
+    measured = range_fraction(data.p_rows, pairs, scales)
     at = range_fraction(candidates, pairs, scales)
     nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
     return data.sigma[nearest]
@@ -311,7 +311,7 @@ def suggest_points(
     scales = model.basis.scales
     grid = _range_grid(pairs, scales)
     cands = grid if candidates is None else _candidates(candidates, pairs)
-    cands = _unmeasured(cands, data.p.reshape(data.n_points, -1), pairs, scales)
+    cands = _unmeasured(cands, data.p_rows, pairs, scales)
     if len(cands) < k:
         raise ValueError(
             f"k: {k} point(s) asked for, but only {len(cands)} candidate(s) are not measured yet"
@@ -332,7 +332,7 @@ def suggest_points(
         R,
         k,
         range_fraction(cands, pairs, scales),
-        range_fraction(data.p.reshape(data.n_points, -1), pairs, scales),
+        range_fraction(data.p_rows, pairs, scales),
     )
     points = cands[picks]
     return Suggestion(
@@ -368,7 +368,7 @@ def _by_committee(
     """The committee's criterion (module notes)."""
     data = result.data
     f = data.freqs_hz
-    measured = range_fraction(data.p.reshape(data.n_points, -1), pairs, scales)
+    measured = range_fraction(data.p_rows, pairs, scales)
     h = 1.0 / (data.n_points + k)
     at, on_grid = range_fraction(cands, pairs, scales), range_fraction(grid, pairs, scales)
     band = _relative_spread(between, f, grid)

@@ -126,7 +126,7 @@ def _scaled_points(data: FrfData, model: LpvModel) -> NDArray[np.float64]:
     """The data's points as fractions of the model's range, on the basis's scales."""
     rng = model.p_range if model.p_range is not None else data.p_range
     pairs = range_pairs(rng, model.basis.n_params)
-    return range_fraction(data.p.reshape(data.n_points, -1), pairs, model.basis.scales)
+    return range_fraction(data.p_rows, pairs, model.basis.scales)
 
 
 def block_start(
@@ -194,7 +194,7 @@ def start_points(data: FrfData, local: LocalModels, fixed: Any) -> list[int]:
     The ends: the points of the smallest and the largest first scheduling parameter.
     """
     proper = {"D": True} if strictly_proper(fixed) else None
-    first = data.p.reshape(data.n_points, -1)[:, 0]
+    first = data.p_rows[:, 0]
     best = best_determined(local, data, fixed=proper) if len(local) > 1 else 0
     out: list[int] = []
     for q in (best, int(np.argmin(first)), int(np.argmax(first))):

@@ -89,7 +89,7 @@ def check_scale(
     for what, d in (("data", data), ("validation data", validation)):
         if d is None:
             continue
-        p = d.p.reshape(d.n_points, -1)
+        p = d.p_rows
         for k, scale in enumerate(basis.scales):
             if scale == "log" and not np.all(p[:, k] > 0):
                 which = "" if basis.n_params == 1 else f" parameter {k + 1}"

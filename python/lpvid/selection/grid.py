@@ -115,7 +115,7 @@ def held_out_points(data: FrfData, bases: Iterable[Basis]) -> list[int]:
     """
     if any(data.n_points <= len(b) + 2 for b in bases):
         return []
-    p = data.p.reshape(data.n_points, -1)
+    p = data.p_rows
     edge = np.any((p == p.min(axis=0)) | (p == p.max(axis=0)), axis=1)
     return [int(q) for q in np.flatnonzero(~edge)]
 

@@ -62,9 +62,9 @@ def log_axes(data: FrfData, validation: FrfData | None, log_scale: Any) -> tuple
         What the rule saw, for the table.
     """
     rule = _check(log_scale)
-    p = [data.p.reshape(data.n_points, -1)]
+    p = [data.p_rows]
     if validation is not None:
-        p.append(validation.p.reshape(validation.n_points, -1))
+        p.append(validation.p_rows)
     rows = np.concatenate(p)
     names = ["p"] if rows.shape[1] == 1 else [f"p{k + 1}" for k in range(rows.shape[1])]
     axes, parts = [], []

@@ -175,7 +175,7 @@ def _pair(model: LpvModel, data: FrfData, fixed: Any, threshold: float) -> _Pair
     pairs = range_pairs(identify_range(model, data), model.basis.n_params)
     lo = np.array([a for a, _ in pairs])
     span = np.array([b - a for a, b in pairs])
-    measured = (data.p.reshape(data.n_points, -1) - lo) / span
+    measured = (data.p_rows - lo) / span
     at = (grid - lo) / span
     nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
     K_data = frozen_grams(model, data.freqs_hz, data.p, 1.0 / data.sigma**2)
