@@ -137,6 +137,27 @@ def test_the_race_drops_the_worse_half_and_refines_the_rest_to_the_end(case):
     assert max(ident[n] for n in went_on) > min(ident[n] for n in left)
 
 
+def test_a_runner_dropped_between_its_stages_leaves_with_a_fit_of_no_step(case):
+    """``far`` in two stages of two steps: the round's budget ends its first, and it is dropped.
+
+    It is then between stages, with no fit of the second: it leaves with a
+    fit of no step at the model the first ended on (before, its fit was
+    None and the candidate built from it failed an assertion in identify).
+    """
+    data, validation, runners = case
+    free = np.zeros(runners[0].model.theta.size, bool)
+    entered = [_runner(r.name, r.model) for r in runners if r.name != "far"]
+    far_model = next(r.model for r in runners if r.name == "far")
+    far = Runner("far", far_model, [Stage("first", free), Stage("second", free)], 2, ftol=0.0)
+    race([*entered, far], data, validation, rounds=(2,), keep=2)
+    assert far.dropped == 2 and far.history[0]["n_iter"] == 2 and not far.done
+    fit = far.fit
+    assert fit is not None and fit.stop == "dropped" and fit.n_iter == 0
+    assert fit.model is far.model and fit.vnls == far.history[0]["vnls"]
+    assert "before a step of stage 2" in fit.message
+    assert lpvid.vnls(far.model, data) == pytest.approx(fit.vnls, rel=1e-12)
+
+
 def test_two_runs_merge_into_one(case):
     """A runner's fit over several rounds: one history, its sums, the last run's model."""
     data, _, runners = case

@@ -303,7 +303,9 @@ def race(
     best start's are dropped without a step (their fit is one of no step,
     ``stop`` "dropped"); they count among the runners of the first round
     when its worse half is dropped, so that the same runners go on as if
-    they had run it.
+    they had run it. A runner dropped between two of its stages (its steps
+    spent at the end of one) leaves with a fit of no step at the model that
+    stage ended on, as a hopeless one does.
 
     Parameters
     ----------
@@ -339,6 +341,9 @@ def race(
         for k, r in enumerate(alive):
             if k not in stay and not r.done:
                 r.dropped = r.steps
+                if r.fit is None:  # between two stages: it leaves with the last one's model
+                    why = f"dropped by the race before a step of stage {r._stage + 1}"
+                    r.fit = _unfitted(r.model, r.current_vnls(data), data, why)
         alive = [r for k, r in enumerate(alive) if k in stay and not r.done]
         if not alive:
             break
