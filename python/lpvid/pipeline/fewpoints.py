@@ -16,7 +16,9 @@ the *committee*:
 
 (``M`` complex residuals, :func:`lpvid.fit.judge.noise_slack`; the floor
 ``M`` enters so that a family of over-fitted models, all below the floor,
-does not shut out one that fits as the truth would).
+does not shut out one that fits as the truth would). Misfits
+(:mod:`lpvid.pipeline.misfit`) are no members, nor, without validation
+data, fits that bulge (:mod:`lpvid.pipeline.bulge`) unless every one does.
 
 **The rule.** Without validation data, the model returned is the
 committee's consensus, once the blocks route agrees with itself
@@ -66,6 +68,7 @@ from lpvid.model.frozen import frozen_stable
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between, Member
+from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.misfit import misfit
 from lpvid.pipeline.routes import Route
 from lpvid.stable.scan import stability
@@ -309,11 +312,16 @@ def choose_route(
 
     Members that are misfits (:func:`lpvid.pipeline.misfit.misfit`) leave the
     committee; when none is left, the routes' own choices compete on V_NLS.
+    Without validation data, members that bulge (:mod:`lpvid.pipeline.bulge`)
+    leave it too, unless every one does.
     """
     main = routes[0]
     if len(routes) == 1:
         return 0, main.chosen, main.reason, []
     members = [m for m in committee(routes, data) if not misfit(m.vnls, data.n_residuals, local)]
+    if validation is None:
+        calm = [m for m in members if not bulge(m.model, data).bulges]
+        members = calm or members
     if validation is not None:
         i, k, reason = validated(routes, tolerance, data)
     elif not members:

@@ -29,6 +29,7 @@ from lpvid.initial.candidates import candidates_of
 from lpvid.initial.choice import choose
 from lpvid.initial.local import local_models
 from lpvid.model.layout import strictly_proper
+from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.fewpoints import choose_route, open_between, open_routes
 from lpvid.pipeline.misfit import advice, misfit
 from lpvid.pipeline.path import Along
@@ -352,6 +353,16 @@ def _run(
         warnings.warn(
             f"identify: the model returned does not fit within the noise: {wrong}; every "
             f"route was tried ({len(routes)} followed through the path). Try: {advice(local)}",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    rises = bulge(done.model, data) if validation is None and time_cost is None else None
+    if rises is not None and rises.bulges:
+        reason = f"{reason}; it bulges: {rises.describe()}"
+        warnings.warn(
+            f"identify: the model returned is not to be trusted between the points: "
+            f"{rises.describe()}, and no other fit within the noise avoids it. Measure an FRF "
+            f"there (lpvid.next_points) or give validation data",
             ConvergenceWarning,
             stacklevel=3,
         )
