@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ctypes
 import errno
+import io
 import os
 import shutil
 import tempfile
@@ -48,6 +49,20 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[IO[bytes]], None
             pass
         raise
     return target
+
+
+def write_mat(path: str | os.PathLike[str], variables: dict[str, Any]) -> Path:
+    """``variables`` as a compressed MATLAB file, written whole or not at all."""
+    from scipy.io import savemat
+
+    return write_atomic(path, lambda fh: savemat(fh, variables, do_compression=True))
+
+
+def write_npz(path: str | os.PathLike[str], arrays: dict[str, Any]) -> Path:
+    """``arrays`` as a numpy ``.npz`` file, written whole or not at all."""
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return write_atomic(path, lambda fh: fh.write(buf.getvalue()))
 
 
 def check_replaceable(path: Path, names: Collection[str]) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -12,7 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid import _checks as checks
-from lpvid._files import mat_variables, npz_arrays, read_arrays, write_atomic
+from lpvid._files import mat_variables, npz_arrays, read_arrays, write_mat, write_npz
 from lpvid._rows import unique_rows
 from lpvid.data.schedule import scheduling_range
 from lpvid.readers import read_experiment
@@ -322,21 +321,10 @@ class FrfData:
         fields = {"p": self.p, "freqs_hz": self.freqs_hz, "G": self.G, "sigma": self.sigma}
         ts = np.array([]) if self.Ts is None else np.array(self.Ts)
         if suffix == ".npz":
-
-            def write(fh: Any) -> None:
-                buf = io.BytesIO()
-                np.savez(buf, Ts=ts, format=np.array("lpvid-frf"), **fields)
-                fh.write(buf.getvalue())
-
-        elif suffix == ".mat":
-            from scipy.io import savemat
-
-            def write(fh: Any) -> None:
-                savemat(fh, {**fields, "Ts": ts}, do_compression=True)
-
-        else:
-            raise ValueError(f"path: expected a .npz or .mat file, got {Path(path).name!r}")
-        return write_atomic(path, write)
+            return write_npz(path, {"Ts": ts, "format": np.array("lpvid-frf"), **fields})
+        if suffix == ".mat":
+            return write_mat(path, {**fields, "Ts": ts})
+        raise ValueError(f"path: expected a .npz or .mat file, got {Path(path).name!r}")
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> FrfData:

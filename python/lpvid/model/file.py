@@ -63,7 +63,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from lpvid._files import mat_variables, write_atomic
+from lpvid._files import mat_variables, write_atomic, write_mat
 from lpvid.data.basis import basis_from_dict
 from lpvid.data.schedule import scale_list
 from lpvid.model._protocol import ModelLike
@@ -162,10 +162,7 @@ def save_model(model: ModelLike, path: str | os.PathLike[str]) -> Path:
     text = _document(content)
     if suffix == ".json":
         return write_atomic(path, lambda fh: fh.write(text))
-    from scipy.io import savemat
-
-    variables = _matlab_variables(content, model.basis.names, text.decode())
-    return write_atomic(path, lambda fh: savemat(fh, variables, do_compression=True))
+    return write_mat(path, _matlab_variables(content, model.basis.names, text.decode()))
 
 
 def _matlab_variables(content: dict[str, Any], names: list[str], document: str) -> dict[str, Any]:

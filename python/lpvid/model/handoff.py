@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int, real_array
-from lpvid._files import write_atomic
+from lpvid._files import write_mat
 from lpvid.data.schedule import axis_values, range_pairs
 from lpvid.model._protocol import ModelLike
 
@@ -381,6 +381,4 @@ def save_grid(
         + ". In MATLAB: s = load(file); sys = ss(s.A, s.B, s.C, s.D, s.Ts, 'InputName', "
         "s.InputName, 'OutputName', s.OutputName); sys.SamplingGrid = s.SamplingGrid;"
     )
-    from scipy.io import savemat
-
-    return write_atomic(target, lambda fh: savemat(fh, variables, do_compression=True))
+    return write_mat(target, variables)
