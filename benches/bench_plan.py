@@ -12,12 +12,19 @@ points added. Three ways to choose the next point:
 - ``grid``: no loop: an even grid of ``Nb + 1 + k`` points, ``k = 0, 1, ...``
   (every point measured anew), until the goal is met.
 
-Each new measurement is the truth's FRF at that value with 1 % complex
-noise (``lpvid.testing.noisy_data``, the draw's own random numbers). The
+Each measurement is the truth's FRF at that value with 1 % complex noise
+(``lpvid.testing.noisy_data``) whose random numbers are fixed by the draw
+and the value itself (:func:`measure`): every way that measures a value
+gets the same FRF there, as on a bench where a point measured once is
+kept. (Until 2026-11-29 the noise came from one stream per draw, and the
+grid drew it anew at every count, the ends included: at errors near the
+noise's own level that is a fresh try of the noise per count, which the
+loops, keeping what they measured, never get; see docs/fewpoints.md.) The
 summary gives, per way, the mean and median number of points added to
 meet the goal (a draw that does not meet it within ``--most`` counts as
-``most + 1``), how many draws met it, and the mean error after each
-number of added points.
+``most + 1``), how many draws met it, the FRFs measured beyond the first
+set to get there (:func:`measured_beyond`: the grid measures each count's
+values anew), and the mean error after each number of added points.
 
 Run: python benches/bench_plan.py [--cases mor onegroup] [--draws 20] [--most 5]
 """
@@ -53,6 +60,24 @@ def _merge(a: lpvid.FrfData, b: lpvid.FrfData) -> lpvid.FrfData:
     )
 
 
+def measure(true: lpvid.LpvModel, points, freqs_hz, draw: int) -> lpvid.FrfData:
+    """The truth's FRF at ``points``, each value's noise drawn from ``(draw, the value's bits)``."""
+    parts = [
+        noisy_data(
+            true,
+            [p],
+            freqs_hz,
+            np.random.default_rng([7000 + draw, int.from_bytes(np.float64(p).tobytes(), "little")]),
+            0.01,
+        )
+        for p in points
+    ]
+    out = parts[0]
+    for part in parts[1:]:
+        out = _merge(out, part)
+    return out
+
+
 def loop(name: str, draw: int, way: str, most: int) -> list[float]:
     """The worst error after 0, 1, ... added points (stops once the goal is met)."""
     case = CASES[name]
@@ -65,15 +90,14 @@ def loop(name: str, draw: int, way: str, most: int) -> list[float]:
     errors = []
     if way == "grid":
         for k in range(most + 1):
-            grid_rng = np.random.default_rng([7000 + draw, k])
-            data = noisy_data(true, np.linspace(lo, hi, nb1 + k), case.freqs_hz, grid_rng, 0.01)
+            data = measure(true, np.linspace(lo, hi, nb1 + k), case.freqs_hz, draw)
             errors.append(
                 worst_relative_error(_identify(data, case, true).model, true, case.freqs_hz, at)
             )
             if errors[-1] <= GOAL:
                 break
         return errors
-    data = noisy_data(true, first, case.freqs_hz, rng, 0.01)
+    data = measure(true, first, case.freqs_hz, draw)
     for k in range(most + 1):
         res = _identify(data, case, true)
         errors.append(worst_relative_error(res.model, true, case.freqs_hz, at))
@@ -86,8 +110,28 @@ def loop(name: str, draw: int, way: str, most: int) -> list[float]:
             gaps = np.diff(p)
             j = int(np.argmax(gaps))
             new = float(p[j] + gaps[j] / 2)
-        data = _merge(data, noisy_data(true, [new], case.freqs_hz, rng, 0.01))
+        data = _merge(data, measure(true, [new], case.freqs_hz, draw))
     return errors
+
+
+def measured_beyond(name: str, way: str, added: int, most: int) -> int:
+    """FRFs measured beyond the first ``Nb + 1`` to end with ``added`` more points.
+
+    The loops measure one per added point. The grid measures every count's
+    grid anew but for the values an earlier grid measured (the ends, and
+    such as 0.5 in the grids of three and five points): to end at
+    ``Nb + 1 + k`` points it has measured every value of the grids up to
+    that count. A draw that never met the goal counts ``most + 1`` added
+    points (and for the grid, one FRF more than all its grids).
+    """
+    if way != "grid":
+        return added
+    case = CASES[name]
+    nb1 = len(case.truth(0).basis) + 1
+    k = min(added, most)
+    lo, hi = case.truth(0).p_range
+    seen = {float(x) for j in range(k + 1) for x in np.linspace(lo, hi, nb1 + j)}
+    return len(seen) - nb1 + (added > most)
 
 
 def main() -> None:
@@ -113,9 +157,11 @@ def main() -> None:
                 f"{np.mean([c[k] for c in curves]):.3g}" for k in range(args.most + 1)
             )
             met = sum(a <= args.most for a in added)
+            frfs = [measured_beyond(name, way, a, args.most) for a in added]
             lines.append(
                 f"## {name} {way}: points added mean {np.mean(added):.2f}, median "
-                f"{statistics.median(added):g}, met {met}/{len(added)}; mean error after 0.. "
+                f"{statistics.median(added):g}, met {met}/{len(added)}; FRFs measured beyond "
+                f"the first set mean {np.mean(frfs):.2f}; mean error after 0.. "
                 f"{args.most} added: {mean_curve}"
             )
             print(lines[-1], flush=True)
