@@ -75,8 +75,11 @@ def _identify(ds: Any, executor: Executor | None = None) -> lpvid.IdentifyResult
 
 @pytest.fixture(scope="module")
 def stage():
+    """The stage, and its run here: one piece after the other (no threads of identify's own)."""
     ds = lpvid.datasets.positioning_stage()
-    return ds, _identify(ds)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(lpvid._spread, "cores", lambda: 1)
+        return ds, _identify(ds)
 
 
 def assert_same_run(a: lpvid.IdentifyResult, b: lpvid.IdentifyResult) -> None:
@@ -105,6 +108,74 @@ def test_identify_on_threads_is_the_run_here(stage):
     with ThreadPoolExecutor(2) as pool:
         on_threads = _identify(ds, pool)
     assert_same_run(here, on_threads)
+
+
+class _Counted(ThreadPoolExecutor):
+    """A thread pool that keeps itself and counts what it was handed."""
+
+    made: list[_Counted] = []
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.handed = 0
+        _Counted.made.append(self)
+
+    def submit(self, *args: Any, **kwargs: Any) -> Any:
+        self.handed += 1
+        return super().submit(*args, **kwargs)
+
+
+def test_without_an_executor_identify_runs_on_threads_of_its_own_and_the_same(stage, monkeypatch):
+    """One thread per core for the run, every piece handed to them, closed after; the same run."""
+    ds, here = stage
+    _Counted.made = []
+    monkeypatch.setattr(lpvid._spread, "ThreadPoolExecutor", _Counted)
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 3)
+    assert_same_run(here, _identify(ds))
+    (pool,) = _Counted.made
+    assert pool._max_workers == 3 and pool.handed > len(here.local) and pool._shutdown
+
+
+def test_own_threads_only_when_none_is_given_and_there_are_cores(monkeypatch):
+    from lpvid._spread import SMALL_RUN_BYTES, own_threads
+
+    given = ThreadPoolExecutor(1)
+    with own_threads(given, 0) as got:
+        assert got is given
+    assert not given._shutdown  # the caller's pool is the caller's to close
+    given.shutdown()
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 1)
+    with own_threads(None, 0) as got:
+        assert got is None
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 2)
+    with own_threads(None, SMALL_RUN_BYTES) as got:
+        assert isinstance(got, ThreadPoolExecutor) and got._max_workers == 2
+    assert got._shutdown
+    with own_threads(None, SMALL_RUN_BYTES + 1) as got:  # a large run: its fits take the cores
+        assert got is None
+
+    def on_a_thread():
+        with own_threads(None, 0) as got:
+            return got
+
+    with ThreadPoolExecutor(1) as other:  # a run on another pool's thread: spread already
+        assert other.submit(on_a_thread).result() is None
+
+
+def test_cores_are_those_this_process_may_run_on():
+    from lpvid._spread import cores
+
+    expected = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert cores() == expected >= 1
+    if not hasattr(os, "sched_setaffinity") or expected < 2:
+        return
+    mask = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {min(mask)})  # this thread on one core (restored below)
+    try:
+        assert cores() == 1
+    finally:
+        os.sched_setaffinity(0, mask)
+    assert os.sched_getaffinity(0) == mask
 
 
 def test_results_are_taken_in_order_not_as_they_finish(stage):

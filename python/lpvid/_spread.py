@@ -3,8 +3,9 @@
 :func:`lpvid.identify` hands the pieces of its work that do not depend on
 one another (the local model of every scheduling point, the runners of one
 round of the race of the starts, the warm and the pinned fit at one gamma)
-to a :class:`concurrent.futures.Executor` when it is given one, and runs
-them here, one after the other, when not. Results are taken in the order
+to a :class:`concurrent.futures.Executor` when it is given one; when not,
+a small run hands them to threads of its own (:func:`own_threads`) and a
+large one runs them here, one after the other. Results are taken in the order
 the pieces were handed out, never as they finish, and the core's fits are
 the same to the last bit on any number of threads: the run is the same
 wherever the pieces ran.
@@ -25,18 +26,30 @@ and raised again here when its result is taken.
 
 from __future__ import annotations
 
+import os
 import threading
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
 from concurrent.futures import TimeoutError as WaitTimeout  # not the builtin before 3.11
+from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
 from lpvid._capture import collected
 
-__all__ = ["POLL_S", "Piece", "Spread", "check_executor", "stop_flag", "waited"]
+__all__ = [
+    "POLL_S",
+    "SMALL_RUN_BYTES",
+    "Piece",
+    "Spread",
+    "check_executor",
+    "cores",
+    "own_threads",
+    "stop_flag",
+    "waited",
+]
 
 _STOP: ContextVar[threading.Event | None] = ContextVar("lpvid_stop", default=None)
 
@@ -61,6 +74,41 @@ def waited(future: Future[Any]) -> Any:
         except WaitTimeout:
             if future.done():  # the piece's own TimeoutError
                 raise
+
+
+def cores() -> int:
+    """The cores this process may run on (its affinity where the system tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
+
+
+#: The largest peak memory of one run (:func:`lpvid.fit.memory.pipeline_memory`)
+#: for which :func:`own_threads` runs its pieces side by side.
+SMALL_RUN_BYTES = 256 * 2**20
+
+
+@contextmanager
+def own_threads(executor: Executor | None, need: int) -> Iterator[Executor | None]:
+    """``executor``; when None, threads of this process, one per core, for the ``with`` block.
+
+    Only for a small run (``need``, its peak memory, at most
+    :data:`SMALL_RUN_BYTES`) on more than one core, called from the main
+    thread (a run on a thread of another pool, :func:`lpvid.select`'s or
+    the caller's, is already spread with its siblings). A small model's fits
+    hardly spread over the cores inside the core (a local model of ten
+    states on one output and input takes the same time on one thread of
+    the core's pool as on two), so two side by side on two threads take
+    about half the time. A large model's fits take every core themselves:
+    threads beside them gained 8 % at n = 16 and would hold two fits'
+    memory at once (:func:`lpvid.identify`'s notes).
+    """
+    main = threading.current_thread() is threading.main_thread()
+    if executor is not None or not main or cores() < 2 or need > SMALL_RUN_BYTES:
+        yield executor
+        return
+    with ThreadPoolExecutor(cores(), thread_name_prefix="lpvid") as pool:
+        yield pool
 
 
 def check_executor(executor: Any) -> Executor | None:

@@ -61,7 +61,6 @@ __all__ = [
     "check_covariance",
     "check_fit",
     "check_memory",
-    "check_pipeline",
     "covariance_memory",
     "fit_memory",
     "human",
@@ -338,14 +337,6 @@ def pipeline_memory(
     if refit:
         arrays = max(arrays, lm["evaluation"] + covariance_memory(n_params, n_params))
     return resident(arrays), _describe(order, l, r, nb, n_params, sizes)
-
-
-def check_pipeline(
-    what: str, data: Any, order: int, basis: Any, time_data: Any = None, refit: bool = True
-) -> None:
-    """:func:`check_memory` for one :func:`lpvid.identify` run (:func:`pipeline_memory`)."""
-    need, sizes = pipeline_memory(data, order, basis, time_data, refit)
-    check_memory(need, what, sizes)
 
 
 def runs_at_once(needs: Sequence[int], most: int, what: str) -> int:

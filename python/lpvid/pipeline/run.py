@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from lpvid._spread import check_executor
+from lpvid._spread import check_executor, own_threads
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
 from lpvid.errors import ConvergenceWarning, logger
 from lpvid.fit.fits import fit_nls, raise_if_interrupted, warn_if_unconverged
-from lpvid.fit.memory import check_pipeline
+from lpvid.fit.memory import check_memory, pipeline_memory
 from lpvid.fit.results import PathResult
 from lpvid.fit.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
 from lpvid.initial.candidates import candidates_of
@@ -181,10 +181,17 @@ def identify(
         warm fit's cores). The results are taken in a fixed order, never as
         they finish, so the run is the same to the last bit: the same
         local models, the same starts kept and dropped, the same path and
-        model. Default: here, one after the other. The core already spreads
-        every fit over the cores, and threads gained nothing on a 2-core
-        machine (``benches/bench_executor.py``: 0.95-1.06 of the time per
-        stage on the gantry, n = 10 and n = 16). A Dask cluster: its
+        model. Default: for a small run (its peak memory estimate at most
+        256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`) threads of this
+        process, one per core it may run on (none on one core); else here,
+        one after the other. A small model's fits hardly spread over the
+        cores inside the core, and two side by side take about half the
+        time: the synthetic n = 10 SISO system at six points
+        (``benches/bench_small.py``) 1.44 -> 1.24 s, its local models 0.63
+        -> 0.40 s, on two cores; the gantry 0.98 of the time, n = 10 0.94.
+        A large model's fits take every core themselves (n = 16 0.92), and
+        two at once would hold two fits' memory. The run is the same either
+        way. A Dask cluster: its
         ``distributed.Client(address)`` itself (taken as its
         ``get_executor()``) or that executor (its workers need
         lpvid; the data, models and fits are pickled to them). Tasks on
@@ -239,8 +246,11 @@ def identify(
         problem = data
     else:
         problem = arguments.problem(data)
-    executor = check_executor(executor)
-    return _run(problem, progress=progress, executor=executor, t0=t0)
+    p = problem
+    need, sizes = pipeline_memory(p.data, p.order, p.basis, p.time_data, p.settings.refit)
+    check_memory(need, "identify", sizes)  # before any work
+    with own_threads(check_executor(executor), need) as spread_on:
+        return _run(problem, progress=progress, executor=spread_on, t0=t0)
 
 
 def _run(
@@ -252,7 +262,6 @@ def _run(
     settings, starts = problem.settings, problem.settings.starts
     l21, tol, stable = settings.path.l21, settings.path.tolerance, settings.stable
     gs = np.asarray(settings.path.gammas, dtype=float)
-    check_pipeline("identify", data, n, basis, time_cost, settings.refit)
     timings: dict[str, float] = {}
 
     _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
