@@ -1,5 +1,8 @@
-"""identify() here, one piece after the other, against identify(..., executor=threads).
+"""identify() without an executor against identify(..., executor=threads).
 
+Without an executor a large run takes its pieces one after the other, and
+since 2026-11-29 a small one (peak estimate at most 256 MiB: the gantry,
+n = 10) spreads them over threads of its own (``lpvid._spread.own_threads``).
 For each rung of ``benches/bench_scale.py`` (its data, order and basis), runs
 ``lpvid.identify`` alternately without an executor and with a
 ``ThreadPoolExecutor`` of ``--threads`` workers, ``--repeat`` times each

@@ -182,11 +182,11 @@ def identify(
         they finish, so the run is the same to the last bit: the same
         local models, the same starts kept and dropped, the same path and
         model. Default: for a small run (its peak memory estimate at most
-        256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`) threads of this
-        process, one per core it may run on (none on one core); else here,
-        one after the other. A small model's fits hardly spread over the
-        cores inside the core, and two side by side take about half the
-        time: the synthetic n = 10 SISO system at six points
+        256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`) called from the
+        main thread, threads of this process, one per core it may run on
+        (none on one core); else here, one after the other. A small
+        model's fits hardly spread over the cores inside the core, and two
+        side by side take about half the time: the synthetic n = 10 SISO system at six points
         (``benches/bench_small.py``) 1.44 -> 1.24 s, its local models 0.63
         -> 0.40 s, on two cores; the gantry 0.98 of the time, n = 10 0.94.
         A large model's fits take every core themselves (n = 16 0.92), and
