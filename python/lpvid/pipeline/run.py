@@ -186,12 +186,12 @@ def identify(
         main thread, threads of this process, one per core it may run on
         (none on one core); else here, one after the other. A small
         model's fits hardly spread over the cores inside the core, and two
-        side by side take about half the time: the synthetic n = 10 SISO system at six points
-        (``benches/bench_small.py``) 1.44 -> 1.24 s, its local models 0.63
-        -> 0.40 s, on two cores; the gantry 0.98 of the time, n = 10 0.94.
-        A large model's fits take every core themselves (n = 16 0.92), and
-        two at once would hold two fits' memory. The run is the same either
-        way. A Dask cluster: its
+        side by side take about half the time: the synthetic n = 10 SISO
+        system at six points (``benches/bench_small.py``) 1.44 -> 1.24 s,
+        its local models 0.63 -> 0.40 s, on two cores; the gantry 0.98 of
+        the time, n = 10 0.94. A large model's fits take every core
+        themselves (n = 16 0.92), and two at once would hold two fits'
+        memory. The run is the same either way. A Dask cluster: its
         ``distributed.Client(address)`` itself (taken as its
         ``get_executor()``) or that executor (its workers need
         lpvid; the data, models and fits are pickled to them). Tasks on
