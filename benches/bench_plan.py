@@ -50,32 +50,14 @@ def _identify(data: lpvid.FrfData, case, true) -> lpvid.IdentifyResult:
         return lpvid.identify(data, case.n, true.basis, fixed=FIXED)
 
 
-def _merge(a: lpvid.FrfData, b: lpvid.FrfData) -> lpvid.FrfData:
-    return lpvid.FrfData(
-        np.concatenate([a.p, b.p]),
-        a.freqs_hz,
-        np.concatenate([a.G, b.G]),
-        np.concatenate([a.sigma, b.sigma]),
-        Ts=a.Ts,
-    )
-
-
 def measure(true: lpvid.LpvModel, points, freqs_hz, draw: int) -> lpvid.FrfData:
     """The truth's FRF at ``points``, each value's noise drawn from ``(draw, the value's bits)``."""
-    parts = [
-        noisy_data(
-            true,
-            [p],
-            freqs_hz,
-            np.random.default_rng([7000 + draw, int.from_bytes(np.float64(p).tobytes(), "little")]),
-            0.01,
-        )
-        for p in points
-    ]
-    out = parts[0]
-    for part in parts[1:]:
-        out = _merge(out, part)
-    return out
+    return lpvid.FrfData.stack([_one(true, float(p), freqs_hz, draw) for p in points])
+
+
+def _one(true: lpvid.LpvModel, p: float, freqs_hz, draw: int) -> lpvid.FrfData:
+    seed = [7000 + draw, int.from_bytes(np.float64(p).tobytes(), "little")]
+    return noisy_data(true, [p], freqs_hz, np.random.default_rng(seed), 0.01)
 
 
 def loop(name: str, draw: int, way: str, most: int) -> list[float]:
@@ -110,7 +92,7 @@ def loop(name: str, draw: int, way: str, most: int) -> list[float]:
             gaps = np.diff(p)
             j = int(np.argmax(gaps))
             new = float(p[j] + gaps[j] / 2)
-        data = _merge(data, measure(true, [new], case.freqs_hz, draw))
+        data = lpvid.FrfData.stack([data, measure(true, [new], case.freqs_hz, draw)])
     return errors
 
 
