@@ -73,7 +73,8 @@ def identify_lti(
         one branch: always (True), never (False, the default), or when
         :func:`lpvid.consistency` flags a point (``"auto"``).
     executor : concurrent.futures.Executor, optional
-        Where the points' models are identified, each point one task (see
+        Where the points' models are identified, each point's
+        subspace starts one task, then each start's refinement one task (see
         :func:`lpvid.identify`); default here, one after the other. The
         models are the same either way. The continuation runs here.
 
@@ -144,9 +145,20 @@ def local_models(
     F, r = data.n_lines, data.n_inputs
     l = data.n_outputs
     rows = _row_choices(n, F, r, n_rows)
-    how = (n, rows, stable, strictly_proper, refine, max_iter)
-    points = [(data.subset([q]), *how) for q in range(data.n_points)]
-    found = Spread(executor).map(_point_model, points)
+    spread = Spread(executor)
+    points = [data.subset([q]) for q in range(data.n_points)]
+    # Two rounds of pieces: every point's subspace starts, then every start's
+    # refinement (a point's starts take from 2 to 100 steps: one piece per
+    # start keeps the threads evenly busy).
+    starts = spread.map(_point_starts, [(pt, n, rows, stable, strictly_proper) for pt in points])
+    fixed = {"D": True} if strictly_proper else None
+    calls = [
+        (s, pt, fixed, max_iter, stable, refine)
+        for pt, ss in zip(points, starts, strict=True)
+        for s in ss
+    ]
+    refined = iter(spread.map(_refined, calls))
+    found = [_best([next(refined) for _ in ss], ss) for ss in starts]
     models = [m for m, _, _, _ in found]
     costs = [c for _, c, _, _ in found]
     conv = [ok for _, _, ok, _ in found]
@@ -165,33 +177,17 @@ def local_models(
     )
 
 
-@single_blas
-def _point_model(
-    point: FrfData,
-    n: int,
-    rows: list[int | None],
-    stable: bool,
-    strictly_proper: bool,
-    refine: bool,
-    max_iter: int,
+def _best(
+    refined: list[tuple[LpvModel, bool, tuple[bool, float]]], starts: list[LpvModel]
 ) -> tuple[LpvModel, float, bool, LpvModel]:
-    """The local model of one point: its V_NLS, whether its refinement converged, its start.
+    """The local model of one point from its refined starts: its V_NLS, convergence, start.
 
-    Every subspace start is refined and the best kept: stable ones first
-    when ``stable``, then the lowest V_NLS. (A piece of
-    :func:`identify_lti`'s work: BLAS stays on one thread wherever it runs.)
+    The best is kept: stable ones first when the models were to be stable,
+    then the lowest V_NLS; the first in the starts' order on a tie.
     """
-    basis = Polynomial(0, n_params=point.n_params)
-    fixed = {"D": True} if strictly_proper else None
-    best = None
-    for start in _starts(point, n, rows, basis, stable, strictly_proper):
-        model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
-        key = (stable and not is_stable(model), vnls(model, point))
-        if best is None or key < best[0]:
-            best = (key, model, ok, start)
-    assert best is not None
-    (_, cost), model, ok, start = best
-    return model, cost, ok, start
+    k = min(range(len(refined)), key=lambda i: refined[i][2])
+    model, ok, (_, cost) = refined[k]
+    return model, cost, ok, starts[k]
 
 
 def _row_choices(n: int, n_lines: int, n_inputs: int, n_rows: int | None) -> list[int | None]:
@@ -202,20 +198,18 @@ def _row_choices(n: int, n_lines: int, n_inputs: int, n_rows: int | None) -> lis
     return sorted({min(k, q_max) for k in (3 * n, 2 * n, n + 1) if n + 1 <= min(k, q_max)})
 
 
-def _starts(
-    point: FrfData,
-    n: int,
-    rows: list[int | None],
-    basis: Polynomial,
-    stable: bool,
-    strictly_proper: bool,
+@single_blas
+def _point_starts(
+    point: FrfData, n: int, rows: list[int | None], stable: bool, strictly_proper: bool
 ) -> list[LpvModel]:
     """Subspace estimates of one point, each as found and (when stable) balanced.
 
     The refinement is cheap and its outcome depends on the start (a pole
     outside the band can run off to infinity from one start and settle from
-    another), so a few starts are refined and the best result kept.
+    another), so a few starts are refined and the best result kept. (A piece
+    of :func:`identify_lti`'s work: BLAS stays on one thread wherever it runs.)
     """
+    basis = Polynomial(0, n_params=point.n_params)
     out = []
     for q in rows:
         A, B, C, D = fd_subspace(
@@ -235,6 +229,18 @@ def _starts(
             info = {**info, "balanced": True}
             out.append(LpvModel(*bal[0], basis=basis, Ts=point.Ts, info=info))
     return out
+
+
+@single_blas
+def _refined(
+    start: LpvModel, point: FrfData, fixed: Any, max_iter: int, stable: bool, refine: bool
+) -> tuple[LpvModel, bool, tuple[bool, float]]:
+    """One start refined (when ``refine``), whether it converged, and its rank among the point's.
+
+    The rank: unstable after stable when ``stable``, then V_NLS.
+    """
+    model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
+    return model, ok, (stable and not is_stable(model), vnls(model, point))
 
 
 def _refine(start: LpvModel, data: FrfData, fixed: Any, max_iter: int) -> tuple[LpvModel, bool]:
