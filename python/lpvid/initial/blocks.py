@@ -29,11 +29,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._spread import Spread
+from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import model_range, range_fraction, range_pairs
@@ -213,35 +216,52 @@ def block_candidates(
     points: Sequence[int] | None = None,
     max_iter: int = 100,
     ftol: float = START_FTOL,
+    executor: Executor | None = None,
 ) -> list[Candidate]:
     """The blocks route's candidates, one per start point (module notes).
 
     A point whose local model cannot be put in block form gives no candidate.
+    The start points are fitted side by side on ``executor`` (see
+    :func:`lpvid.identify`; default here, one after the other), the
+    candidates the same either way.
     """
-    out = []
-    for q in start_points(data, local, fixed) if points is None else points:
-        t0 = time.perf_counter()
-        try:
-            fit, structure, start = block_start(
-                data, basis, fixed, local, q, max_iter=max_iter, ftol=ftol
-            )
-        except ValueError:
-            continue
-        note = (
-            f"local model {q} in block (modal) form, fitted by continuation along the "
-            "scheduling with the form held"
+    where = start_points(data, local, fixed) if points is None else points
+    how = (basis, fixed, local, validation, max_iter, ftol)
+    found = Spread(executor).map(_block_candidate, [(data, int(q), *how) for q in where])
+    return [c for c in found if c is not None]
+
+
+@single_blas
+def _block_candidate(
+    data: FrfData,
+    point: int,
+    basis: Basis,
+    fixed: Any,
+    local: LocalModels,
+    validation: FrfData | None,
+    max_iter: int,
+    ftol: float,
+) -> Candidate | None:
+    """The blocks route's candidate from one point, None when its model has no block form."""
+    t0 = time.perf_counter()
+    try:
+        fit, structure, start = block_start(
+            data, basis, fixed, local, point, max_iter=max_iter, ftol=ftol
         )
-        seconds = time.perf_counter() - t0
-        out.append(
-            fitted_candidate(
-                f"blocks:{q}",
-                fit,
-                start,
-                data,
-                validation,
-                seconds=seconds,
-                note=note,
-                structure=structure,
-            )
-        )
-    return out
+    except ValueError:
+        return None
+    note = (
+        f"local model {point} in block (modal) form, fitted by continuation along the "
+        "scheduling with the form held"
+    )
+    seconds = time.perf_counter() - t0
+    return fitted_candidate(
+        f"blocks:{point}",
+        fit,
+        start,
+        data,
+        validation,
+        seconds=seconds,
+        note=note,
+        structure=structure,
+    )
