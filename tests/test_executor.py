@@ -184,7 +184,34 @@ def test_results_are_taken_in_order_not_as_they_finish(stage):
     assert_same_run(here, _identify(ds, pool))
     names = {fn.__name__ for fn in pool.ran}
     # the local models, the race's runners, and the pinned fit beside the warm one
-    assert {"_point_model", "_advanced", "_judged"} <= names
+    assert {"_point_starts", "_refined", "_advanced", "_judged"} <= names
+
+
+def test_the_few_points_starts_on_an_executor_are_those_made_here():
+    """The blocks route's starts and the global start from every point, handed out last first."""
+    from lpvid.initial.blocks import block_candidates
+    from lpvid.pipeline.fewpoints import global_everywhere
+
+    true, fixed = lpvid.testing.one_group_lpv(0), {"D": True}
+    data = lpvid.testing.noisy_data(
+        true, [0.0, 0.4, 1.0], np.linspace(2, 100, 60), np.random.default_rng(1), 0.01
+    )
+    problem = lpvid.Problem(data, 10, true.basis, fixed=fixed)
+    local = lpvid.identify_lti(data, 10, strictly_proper=True)
+    makers = {
+        "_block_candidate": lambda ex: block_candidates(
+            data, true.basis, fixed, local, executor=ex
+        ),
+        "_global_all": lambda ex: global_everywhere(problem, local, ex),
+    }
+    for name, make in makers.items():
+        pool = LastFirst()
+        here, there = make(None), make(pool)
+        assert len(here) >= 2 and [fn.__name__ for fn in pool.ran] == [name] * len(here)
+        assert [c.name for c in there] == [c.name for c in here]
+        for a, b in zip(here, there, strict=True):
+            np.testing.assert_array_equal(a.model.theta, b.model.theta)
+            assert a.vnls == b.vnls
 
 
 def test_identify_on_a_dask_cluster_is_the_run_here(stage):

@@ -254,3 +254,21 @@ def test_the_summary_says_when_the_spread_is_the_noise_part_only():
     assert "noise's part" not in shown.summary() and "1 other fit(s)" in shown.summary()
     # the band on the seen directions leaves the silent ones out
     assert shown.band.n_unidentified == cov.n_unidentified + shown.count.silent
+
+
+def test_no_model_is_counted_twice_in_a_run(monkeypatch):
+    """The chosen start's route, counted to open the routes, is not counted again to choose."""
+    data = _data([0.02, 0.45, 1.0], seed=5)
+    counted = []
+    real = fewpoints.count_silent
+
+    def counting(model, *args, **kwargs):
+        counted.append(model.theta.tobytes())
+        return real(model, *args, **kwargs)
+
+    monkeypatch.setattr(fewpoints, "count_silent", counting)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
+    assert res.between.members  # the routes were opened and competed
+    assert len(counted) >= 2 and len(set(counted)) == len(counted)

@@ -52,11 +52,14 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._spread import Spread
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import between_points
 from lpvid.fit.judge import noise_slack
@@ -211,6 +214,7 @@ def open_routes(
     local: LocalModels,
     follow_start: Callable[[Candidate], Route],
     say: Callable[[str], Any],
+    executor: Executor | None = None,
 ) -> tuple[list[Route], list[Candidate], SilentCount | None]:
     """The routes to choose among, the extra candidates, and the count that decided.
 
@@ -250,9 +254,10 @@ def open_routes(
         points=points,
         max_iter=starts.max_iter,
         ftol=starts.ftol,
+        executor=executor,
     )
     if wrong:
-        more += global_everywhere(problem, local)
+        more += global_everywhere(problem, local, executor)
     floor = data.n_residuals
     best = min([e.vnls for e in main.entries] + [c.vnls for c in more])
     limit = max(best, floor) + noise_slack(floor)
@@ -264,33 +269,42 @@ def open_routes(
     return routes, more, count
 
 
-def global_everywhere(problem: Any, local: LocalModels) -> list[Candidate]:
-    """The global start with every group freed at once, from the local model of every point."""
+def global_everywhere(
+    problem: Any, local: LocalModels, executor: Executor | None = None
+) -> list[Candidate]:
+    """The global start with every group freed at once, from the local model of every point.
+
+    The points side by side on ``executor`` (default here, one after the other).
+    """
     data, starts = problem.data, problem.settings.starts
-    out = []
-    for q in range(data.n_points):
-        t0 = time.perf_counter()
-        const = constant_start(
-            data,
-            problem.order,
-            problem.basis,
-            problem.fixed,
-            local=local,
-            point=q,
-            max_iter=starts.max_iter,
-            ftol=starts.ftol,
-        )
-        _, fit, start = free_groups(
-            const, data, problem.fixed, "all", max_iter=starts.max_iter, ftol=starts.ftol
-        )
-        note = f"constant model from local model {q}, then every group freed"
-        seconds = time.perf_counter() - t0
-        out.append(
-            fitted_candidate(
-                f"global:all@{q}", fit, start, data, problem.validation, seconds=seconds, note=note
-            )
-        )
-    return out
+    how = (data, problem.order, problem.basis, problem.fixed, problem.validation, local)
+    calls = [(*how, q, starts.max_iter, starts.ftol) for q in range(data.n_points)]
+    return Spread(executor).map(_global_all, calls)
+
+
+@single_blas
+def _global_all(
+    data: FrfData,
+    order: int,
+    basis: Any,
+    fixed: Any,
+    validation: FrfData | None,
+    local: LocalModels,
+    point: int,
+    max_iter: int,
+    ftol: float,
+) -> Candidate:
+    """:func:`global_everywhere`'s candidate from the local model at ``point``."""
+    t0 = time.perf_counter()
+    const = constant_start(
+        data, order, basis, fixed, local=local, point=point, max_iter=max_iter, ftol=ftol
+    )
+    _, fit, start = free_groups(const, data, fixed, "all", max_iter=max_iter, ftol=ftol)
+    note = f"constant model from local model {point}, then every group freed"
+    seconds = time.perf_counter() - t0
+    return fitted_candidate(
+        f"global:all@{point}", fit, start, data, validation, seconds=seconds, note=note
+    )
 
 
 def choose_route(
@@ -300,6 +314,7 @@ def choose_route(
     tolerance: float,
     local: LocalModels,
     threshold: float = 1e-6,
+    counted: SilentCount | None = None,
 ) -> tuple[int, int, str, list[Member]]:
     """The route and entry returned, why, and the other members of the committee.
 
@@ -308,7 +323,9 @@ def choose_route(
     of the next measurement follow the routes the data left in the running.
 
     ``threshold``: the relative group magnitude at or below which a group
-    counts as dropped (the structures' counts).
+    counts as dropped (the structures' counts); ``counted``: the count of
+    the first route's choice when already made (:func:`open_routes`'), at
+    that threshold.
 
     Members that are misfits (:func:`lpvid.pipeline.misfit.misfit`) leave the
     committee; when none is left, the routes' own choices compete on V_NLS.
@@ -337,7 +354,7 @@ def choose_route(
         )
         members = [m for m in members if m.route == 0]
     else:
-        choices, why = simplest_choices(routes, members, data, threshold)
+        choices, why = simplest_choices(routes, members, data, threshold, counted)
         pick, reason = consensus(members, data, choices)
         reason = f"{reason}; {why}"
         i, k = pick.route, pick.index
@@ -369,7 +386,11 @@ def consistent(routes: Sequence[Route], members: Sequence[Member], data: FrfData
 
 
 def simplest_choices(
-    routes: Sequence[Route], members: Sequence[Member], data: FrfData, threshold: float
+    routes: Sequence[Route],
+    members: Sequence[Member],
+    data: FrfData,
+    threshold: float,
+    counted: SilentCount | None = None,
 ) -> tuple[list[tuple[int, int]], str]:
     """The routes' choices that compete in the consensus (module notes), and why.
 
@@ -377,14 +398,17 @@ def simplest_choices(
     ``K`` the directions its structure has over the range
     (``SilentCount.over_range`` of :mod:`lpvid.trust.silent`: those the points see
     and those they leave open); those within the noise (``2 sqrt(M)``) of
-    the least score compete.
+    the least score compete. ``counted``: the first route's count, when
+    already made.
     """
     inside = {(m.route, m.index) for m in members}
     scored = []
     for i, r in enumerate(routes):
         if (i, r.chosen) not in inside:
             continue
-        count, _ = count_silent(r.entry.model, data, r.fixed, threshold)
+        count = counted if i == 0 and counted is not None else None
+        if count is None:
+            count, _ = count_silent(r.entry.model, data, r.fixed, threshold)
         k = 0 if count is None else count.over_range
         scored.append(((i, r.chosen), r.entry.vnls + COMPLEXITY * k, k))
     if not scored:

@@ -313,15 +313,16 @@ def _run(
     main = follow(start.name, nls, gs, data, fixed, along)
     timings["path_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    routes, more, _ = open_routes(
+    routes, more, counted = open_routes(
         problem,
         main,
         local,
         lambda c: follow(c.name, c.fit, gs, data, c.structure, along),
         lambda message: _say(progress, message),
+        executor,
     )
     route_index, chosen, reason, members = choose_route(
-        routes, data, validation, tol, local, l21.threshold
+        routes, data, validation, tol, local, l21.threshold, counted
     )
     route = routes[route_index]
     route.say_warnings()
