@@ -64,3 +64,26 @@ def test_a_failing_entry_point_leaves_the_next_call_limited(counted):
     assert len(counted) == 1
     assert fine() in ({1}, set())
     assert len(counted) == 2
+
+
+def test_an_entry_point_on_another_thread_within_a_limited_run_sets_no_limit(counted):
+    """The pieces of a run on its threads: one limit for all, the caller's setting after."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    @threads.single_blas
+    def piece():
+        return _blas_threads()
+
+    @threads.single_blas
+    def run():
+        with ThreadPoolExecutor(2) as pool:
+            return [f.result() for f in [pool.submit(piece) for _ in range(6)]]
+
+    if not _blas_threads():
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = _blas_threads()
+        seen = run()
+        assert _blas_threads() == before
+    assert all(n == {1} for n in seen)
+    assert len(counted) == 1

@@ -6,11 +6,13 @@ dense problems of the initial estimates (QR, SVD, least squares), and the
 two pools then fight over the cores: measured on a 2-core machine, a
 3000 x 400 QR took 1.4-1.8 s with OpenBLAS's threads and 0.14-0.24 s with
 one. The pipeline entry points run with BLAS limited to one thread (through
-threadpoolctl) and restore the caller's setting on return. Within one,
-the functions it calls that are entry points too (the local models, the
-SMILE candidates, ...) leave the limit as it is: threadpoolctl looks up
-the loaded libraries at every call (0.8 ms, nine times in a gantry
-``identify``).
+threadpoolctl) and restore the caller's setting on return. The limit is
+process-wide, and so is its count here: the first entry point to start (in
+any thread) sets it, the last to return restores the caller's setting, and
+those that run meanwhile (nested ones, and the pieces of a run on its
+threads: the local models, the SMILE candidates, ...) leave it as it is.
+threadpoolctl looks up the loaded libraries at every call (0.8 ms; a small
+``identify`` hands out some fifty pieces).
 """
 
 from __future__ import annotations
@@ -24,23 +26,35 @@ from threadpoolctl import threadpool_limits
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-# Whether this thread runs inside a limit set here (the limit itself is
-# process-wide; a piece on an executor's thread sets its own).
-_inside = threading.local()
+_lock = threading.Lock()
+# How many entry points run (in every thread), and the limit they hold.
+_held: dict[str, Any] = {"count": 0, "limit": None}
+
+
+def _enter() -> None:
+    with _lock:
+        if _held["count"] == 0:
+            _held["limit"] = threadpool_limits(limits=1, user_api="blas")
+        _held["count"] += 1
+
+
+def _leave() -> None:
+    with _lock:
+        _held["count"] -= 1
+        if _held["count"] == 0:
+            limit, _held["limit"] = _held["limit"], None
+            limit.restore_original_limits()
 
 
 def single_blas(fn: F) -> F:
-    """Run ``fn`` with numpy's BLAS limited to one thread (already so within another)."""
+    """Run ``fn`` with numpy's BLAS limited to one thread (already so while another runs)."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        if getattr(_inside, "limited", False):
+        _enter()
+        try:
             return fn(*args, **kwargs)
-        with threadpool_limits(limits=1, user_api="blas"):
-            _inside.limited = True
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                _inside.limited = False
+        finally:
+            _leave()
 
     return wrapper  # type: ignore[return-value]
