@@ -86,6 +86,29 @@ def test_the_spread_is_the_band_plus_the_farthest_member():
     assert rel > 0 and TRUE.p_range[0] <= where[0] <= TRUE.p_range[1]
 
 
+def test_where_the_points_determine_the_structure_the_fits_are_votes():
+    """The committee's part: the median distance where the points determine it, else the largest."""
+    held = lpvid.fixed_mask(TRUE, FIXED) | lpvid.fixed_mask(
+        TRUE, {"A": [2], "B": [1, 2], "C": [1, 2]}
+    )
+    members = [_member(_shifted(TRUE, s), k) for k, s in enumerate([1.1, 1.01, 1.001])]
+    p = np.array([0.3, 0.7])
+    dev = [np.abs(m.model.frf(FREQS, p) - TRUE.frf(FREQS, p)) for m in members]
+    for points, determined in ((np.linspace(0.02, 1, 9), True), ([0.02, 0.5, 1.0], False)):
+        data = _data(points, seed=2)
+        cov = lpvid.covariance(TRUE, data, FIXED, warn=False)
+        between = Between(TRUE, members, cov, data, held)
+        assert between.determined is determined
+        band = lpvid.trust.uncertainty.band_radius(0.95) * between.band.frf_std(FREQS, p)
+        s = between.spread(FREQS, p)
+        if determined:
+            assert np.allclose(s, band + dev[1])  # the middle one of three, entry by entry
+            assert "median distance" in between.summary()
+        else:
+            assert np.allclose(s, band + dev[0])  # the farthest
+            assert "the data are silent" in between.summary()
+
+
 def test_misfits_are_told_by_the_local_models_level():
     data = _data([0.02, 0.5, 1.0])
     local = lpvid.identify_lti(data, 10, strictly_proper=True)

@@ -9,11 +9,17 @@ Two things, both in :class:`Between`:
   95 % band of the covariance on the directions the points see (the
   noise's part, first order: :func:`lpvid.trust.silent.seen_covariance`)
   plus the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`: the
-  largest distance from the returned model's FRF to the FRF of any other
-  fit within the noise of the routes whose choices competed), two parts of
-  different origin added. Where the
-  points determine the model the band is the spread; where they do not,
-  the committee shows what the data leave to the prior.
+  distances from the returned model's FRF to the FRFs of the other fits
+  within the noise of the routes whose choices competed), two parts of
+  different origin added. Where the points leave the returned structure
+  open, the committee shows what the data leave to the prior, and its part
+  is the largest distance. Where they determine it, the band is the
+  noise's part of that structure, the other fits are votes that the
+  choice among the routes has weighed already, and the committee's part
+  is their median distance: one far fit is one vote. (On the benchmark of
+  ``benches/bench_few.py`` the median there, not the largest, put the
+  spread within ten times the actual error in more draws at six to eight
+  points, with the same coverage of the truth.)
 """
 
 from __future__ import annotations
@@ -131,7 +137,8 @@ class Between:
         """The spread around ``model.frf(freqs_hz, p)``: shape ``(M, F, l, r)`` (module notes).
 
         Entry by entry, the covariance's band of coverage ``level`` plus the
-        largest distance to another fit within the noise.
+        largest distance to another fit within the noise, or their median
+        distance where the points determine the structure (:attr:`determined`).
         """
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
@@ -139,8 +146,12 @@ class Between:
         if self.band is not None:
             band = band_radius(level) * self.band.frf_std(f, p)
         far = np.zeros(G.shape)
-        for m in self.members:
-            far = np.maximum(far, np.abs(m.model.frf(f, p) - G))
+        apart = (np.abs(m.model.frf(f, p) - G) for m in self.members)
+        if self.members and self.determined:
+            far = np.median(list(apart), axis=0)
+        else:
+            for d in apart:
+                far = np.maximum(far, d)
         return band + far
 
     def worst(self) -> tuple[float, NDArray[np.float64]]:
@@ -171,10 +182,15 @@ class Between:
         else:
             lines.append(f"between the points: not counted ({self.note})")
         if self.members:
+            routes = len({m.name.split(",")[0] for m in self.members})
             lines.append(
-                f"  {len(self.members)} other fit(s) within the noise, from "
-                f"{len({m.name.split(',')[0] for m in self.members})} route(s); where they "
-                "disagree with the model returned, the data are silent"
+                f"  {len(self.members)} other fit(s) within the noise, from {routes} route(s); "
+                + (
+                    "the points determine the returned structure: the spread below adds "
+                    "their median distance to its band"
+                    if self.determined
+                    else "where they disagree with the model returned, the data are silent"
+                )
             )
         elif self.count is not None and not self.count.determined:
             lines.append(
