@@ -184,7 +184,39 @@ def test_results_are_taken_in_order_not_as_they_finish(stage):
     assert_same_run(here, _identify(ds, pool))
     names = {fn.__name__ for fn in pool.ran}
     # the local models, the race's runners, and the pinned fit beside the warm one
-    assert {"_point_starts", "_refined", "_advanced", "_judged"} <= names
+    assert {"_refined", "_advanced", "_judged"} <= names
+
+
+def test_the_local_models_subspace_starts_are_made_in_the_calling_thread(monkeypatch):
+    """numpy's LAPACK work stays in the caller's thread; only the core's refinements go out.
+
+    OpenBLAS, limited to one thread at run time, gave n = 24 3x3 subspace
+    starts 1e-9 apart on a pool's thread after a run on the main one, and
+    five of nine local models changed.
+    """
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    import lpvid.initial.local as local
+
+    where = []
+    made = local._point_starts
+
+    def recorded(*args):
+        where.append(threading.current_thread())
+        return made(*args)
+
+    monkeypatch.setattr(local, "_point_starts", recorded)
+    true = lpvid.testing.one_group_lpv(0)
+    data = lpvid.testing.noisy_data(
+        true, [0.0, 0.5, 1.0], np.linspace(2, 100, 40), np.random.default_rng(1), 0.01
+    )
+    here = local.local_models(data, 10, strictly_proper=True)
+    with ThreadPoolExecutor(2) as pool:
+        there = local.local_models(data, 10, strictly_proper=True, executor=pool)
+    assert len(where) == 6 and all(t is threading.current_thread() for t in where)
+    for a, b in zip(here, there, strict=True):
+        np.testing.assert_array_equal(a.theta, b.theta)
 
 
 def test_the_few_points_starts_on_an_executor_are_those_made_here():

@@ -73,8 +73,8 @@ def identify_lti(
         one branch: always (True), never (False, the default), or when
         :func:`lpvid.consistency` flags a point (``"auto"``).
     executor : concurrent.futures.Executor, optional
-        Where the points' models are identified, each point's
-        subspace starts one task, then each start's refinement one task (see
+        Where the points' models are refined, each start's refinement one
+        task (the subspace starts are computed here; see
         :func:`lpvid.identify`); default here, one after the other. The
         models are the same either way. The continuation runs here.
 
@@ -147,10 +147,14 @@ def local_models(
     rows = _row_choices(n, F, r, n_rows)
     spread = Spread(executor)
     points = [data.subset([q]) for q in range(data.n_points)]
-    # Two rounds of pieces: every point's subspace starts, then every start's
-    # refinement (a point's starts take from 2 to 100 steps: one piece per
-    # start keeps the threads evenly busy).
-    starts = spread.map(_point_starts, [(pt, n, rows, stable, strictly_proper) for pt in points])
+    # Every point's subspace starts here, then every start's refinement a
+    # piece (a point's starts take from 2 to 100 steps: one piece per start
+    # keeps the threads evenly busy). The starts are numpy's LAPACK work,
+    # whose last bits depend on the thread that calls it (OpenBLAS, limited
+    # to one thread at run time: on another thread after a run on this one,
+    # n = 24 3x3 starts moved by 1e-9 and five of nine local models changed);
+    # the refinements are the core's, the same on any thread.
+    starts = [_point_starts(pt, n, rows, stable, strictly_proper) for pt in points]
     fixed = {"D": True} if strictly_proper else None
     calls = [
         (s, pt, fixed, max_iter, stable, refine)
