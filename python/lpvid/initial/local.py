@@ -150,10 +150,11 @@ def local_models(
     # Every point's subspace starts here, then every start's refinement a
     # piece (a point's starts take from 2 to 100 steps: one piece per start
     # keeps the threads evenly busy). The starts are numpy's LAPACK work,
-    # whose last bits depend on the thread that calls it (OpenBLAS, limited
-    # to one thread at run time: on another thread after a run on this one,
-    # n = 24 3x3 starts moved by 1e-9 and five of nine local models changed);
-    # the refinements are the core's, the same on any thread.
+    # whose last bits can depend on the thread that calls it: OpenBLAS with
+    # its thread count set at run time gave identify_lti's n = 24 3x3 starts
+    # 1e-9 apart on a pool's threads after a run on this one, and five of
+    # nine local models changed. The refinements are the core's, the same
+    # on any thread.
     starts = [_point_starts(pt, n, rows, stable, strictly_proper) for pt in points]
     fixed = {"D": True} if strictly_proper else None
     calls = [
