@@ -1,8 +1,9 @@
 """The independent work of one identify run on an executor, taken back in a fixed order.
 
 :func:`lpvid.identify` hands the pieces of its work that do not depend on
-one another (the local model of every scheduling point, the runners of one
-round of the race of the starts, the warm and the pinned fit at one gamma)
+one another (the refinement of every subspace start of the local models,
+the runners of one round of the race of the starts, the blocks route's
+starts, the warm and the pinned fit at one gamma)
 to a :class:`concurrent.futures.Executor` when it is given one; when not,
 a small run hands them to threads of its own (:func:`own_threads`) and a
 large one runs them here, one after the other. Results are taken in the order

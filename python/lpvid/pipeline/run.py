@@ -173,9 +173,11 @@ def identify(
         l2,1 penalty) and return the refit when it validates better
         (:attr:`IdentifyResult.refitted`). False: never refit.
     executor : concurrent.futures.Executor or distributed.Client, optional
-        Where the independent fits run, each one task: the local model of
-        every scheduling point, the runners of every round of the race of
-        the starts, and (on an executor of other processes, such as a Dask
+        Where the independent fits run, each one task: the refinement of
+        every subspace start of the local models, the runners of every
+        round of the race of the starts, the blocks route's and (after a
+        misfit) the global starts when the points leave the structure open,
+        and (on an executor of other processes, such as a Dask
         cluster) a guarded path's pinned fit beside the warm one at every
         gamma, dropped when not needed (on threads here it would take the
         warm fit's cores). The results are taken in a fixed order, never as
