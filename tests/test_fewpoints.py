@@ -109,6 +109,21 @@ def test_where_the_points_determine_the_structure_the_fits_are_votes():
             assert "the data are silent" in between.summary()
 
 
+def test_the_spread_takes_one_line_or_many_and_needs_no_covariance():
+    data = _data([0.02, 0.5, 1.0])
+    cov = lpvid.covariance(TRUE, data, FIXED, warn=False)
+    between = Between(TRUE, [], cov, data)
+    p = np.array([0.3, 0.7])
+    assert between.spread(FREQS[3], p).shape == (2, 1, 1, 1)
+    np.testing.assert_allclose(between.spread(FREQS[3], p)[:, 0], between.spread(FREQS, p)[:, 3])
+    with pytest.raises(ValueError, match="freqs_hz"):
+        between.spread(np.ones((2, 2)), p)
+    far = _shifted(TRUE, 1.1)
+    alone = Between(TRUE, [_member(far, 0)])  # no covariance: the committee's part alone
+    dev = np.abs(far.frf(FREQS, p) - TRUE.frf(FREQS, p))
+    np.testing.assert_allclose(alone.spread(FREQS, p), dev)
+
+
 def test_misfits_are_told_by_the_local_models_level():
     data = _data([0.02, 0.5, 1.0])
     local = lpvid.identify_lti(data, 10, strictly_proper=True)
