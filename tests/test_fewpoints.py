@@ -84,6 +84,10 @@ def test_the_spread_is_the_band_plus_the_farthest_member():
     assert np.allclose(alone.spread(FREQS, p), band)
     rel, where = between.worst()
     assert rel > 0 and TRUE.p_range[0] <= where[0] <= TRUE.p_range[1]
+    ratio = np.linalg.norm((band + dev).reshape(2, -1), axis=1) / np.linalg.norm(
+        TRUE.frf(FREQS, p).reshape(2, -1), axis=1
+    )
+    np.testing.assert_allclose(between.relative_spread(FREQS, p), ratio)
 
 
 def test_where_the_points_determine_the_structure_the_fits_are_votes():

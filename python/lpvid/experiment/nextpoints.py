@@ -346,16 +346,6 @@ def suggest_points(
     )
 
 
-def _relative_spread(between: Any, freqs_hz: NDArray, p: NDArray) -> NDArray[np.float64]:
-    """``||spread(p)|| / ||G_m(p)||`` at every row of ``p`` (Frobenius norms)."""
-    q = p[:, 0] if p.shape[1] == 1 else p
-    s = between.spread(freqs_hz, q)
-    G = between.model.frf(freqs_hz, q)
-    num = np.linalg.norm(s.reshape(len(p), -1), axis=1)
-    den = np.linalg.norm(G.reshape(len(p), -1), axis=1)
-    return num / np.maximum(den, np.finfo(float).tiny)
-
-
 def _by_committee(
     result: IdentifyResult,
     between: Any,
@@ -371,7 +361,7 @@ def _by_committee(
     measured = range_fraction(data.p_rows, pairs, scales)
     h = 1.0 / (data.n_points + k)
     at, on_grid = range_fraction(cands, pairs, scales), range_fraction(grid, pairs, scales)
-    band = _relative_spread(between, f, grid)
+    band = between.relative_spread(f, grid)
     gap = np.min(np.linalg.norm(at[:, None, :] - measured[None, :, :], axis=2), axis=1)
     # a measurement at a candidate settles the spread around it, to zero at the candidate
     settle = np.minimum(1.0, np.linalg.norm(at[:, None, :] - on_grid[None, :, :], axis=2) / h)

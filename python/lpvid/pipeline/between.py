@@ -140,6 +140,21 @@ class Between:
         largest distance to another fit within the noise, or their median
         distance where the points determine the structure (:attr:`determined`).
         """
+        return self._around(freqs_hz, p, level)[0]
+
+    def relative_spread(self, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.float64]:
+        """``||spread(p)|| / ||G(p)||`` at every scheduling value of ``p``: shape ``(M,)``.
+
+        Frobenius norms over every line, output and input; ``G`` the
+        returned model's frozen FRF.
+        """
+        s, G = self._around(freqs_hz, p, 0.95)
+        num = np.linalg.norm(s.reshape(len(s), -1), axis=1)
+        den = np.linalg.norm(G.reshape(len(G), -1), axis=1)
+        return num / np.maximum(den, np.finfo(float).tiny)
+
+    def _around(self, freqs_hz: ArrayLike, p: ArrayLike, level: float) -> tuple[NDArray, NDArray]:
+        """The spread (:meth:`spread`) and the model's frozen FRF it is around."""
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
         band = np.zeros(G.shape)
@@ -152,7 +167,7 @@ class Between:
         else:
             for d in apart:
                 far = np.maximum(far, d)
-        return band + far
+        return band + far, G
 
     def worst(self) -> tuple[float, NDArray[np.float64]]:
         """The largest relative spread over the range, and where.
@@ -165,12 +180,7 @@ class Between:
         if data is None:
             raise ValueError("between: has no data to take the range and lines from")
         grid = range_grid(self.model, data)
-        p = grid[:, 0] if grid.shape[1] == 1 else grid
-        s = self.spread(data.freqs_hz, p)
-        G = self.model.frf(data.freqs_hz, p)
-        rel = np.linalg.norm(s.reshape(len(grid), -1), axis=1) / np.maximum(
-            np.linalg.norm(G.reshape(len(grid), -1), axis=1), np.finfo(float).tiny
-        )
+        rel = self.relative_spread(data.freqs_hz, grid)
         k = int(np.argmax(rel))
         return float(rel[k]), grid[k]
 

@@ -72,9 +72,8 @@ class Bulge:
 
 def _norms(model: LpvModel, freqs_hz: NDArray, grid: NDArray) -> NDArray[np.float64]:
     """The frozen FRF's norm at every row of ``grid``; inf where it is singular or overflows."""
-    p = grid[:, 0] if grid.shape[1] == 1 else grid
     try:
-        return np.linalg.norm(model.frf(freqs_hz, p).reshape(len(grid), -1), axis=1)
+        return np.linalg.norm(model.frf(freqs_hz, grid).reshape(len(grid), -1), axis=1)
     except SingularModelError:
         if len(grid) == 1:
             return np.array([np.inf])

@@ -125,8 +125,7 @@ def distances(models: Sequence[LpvModel], data: FrfData) -> NDArray[np.float64]:
     output and input, ``s(p)`` the mean of the models' norms at ``p``.
     """
     grid = range_grid(models[0], data)
-    p = grid[:, 0] if grid.shape[1] == 1 else grid
-    G = np.array([m.frf(data.freqs_hz, p).reshape(len(grid), -1) for m in models])
+    G = np.array([m.frf(data.freqs_hz, grid).reshape(len(grid), -1) for m in models])
     scale = np.mean(np.linalg.norm(G, axis=2), axis=0)
     scale = np.where(scale > 0, scale, 1.0)
     diff = np.linalg.norm(G[:, None] - G[None, :], axis=3) / scale
