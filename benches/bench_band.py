@@ -43,12 +43,12 @@ import warnings
 from dataclasses import replace
 
 import numpy as np
-from bench_few import CASES, FIXED, coverage, placement, unseen
+from bench_few import CASES, FIXED, coverage, measured, unseen
 
 import lpvid
 from lpvid.experiment.design import GridParts, target
 from lpvid.fit.cost import build_problem
-from lpvid.testing import noisy_data, worst_relative_error
+from lpvid.testing import worst_relative_error
 from lpvid.trust.silent import range_grid
 from lpvid.trust.uncertainty import _lti_index, band_radius
 
@@ -135,12 +135,7 @@ def main() -> None:
         for n_points in args.points or case.default_points:
             seen = {"first order": [], "checked": []}
             for draw in range(args.draws):
-                true = case.truth(draw)
-                pairs = lpvid.data.schedule.range_pairs(true.p_range, case.n_params)
-                lo, hi = np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
-                rng = np.random.default_rng(100 * n_points + draw)
-                p = placement(case, lo, hi, n_points, rng)
-                data = noisy_data(true, p, case.freqs_hz, rng, 0.01)
+                true, data, lo, hi = measured(case, n_points, draw)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     res = lpvid.identify(data, case.n, true.basis, fixed=FIXED)

@@ -113,17 +113,22 @@ def coverage(res, true: lpvid.LpvModel, f: np.ndarray, p: np.ndarray) -> tuple[f
     return inside, worst_spread / worst_err
 
 
+def measured(case: Case, n_points: int, draw: int):
+    """The draw's truth, its data at ``n_points`` placed points, and the range's corners lo, hi."""
+    true = case.truth(draw)
+    pairs = lpvid.data.schedule.range_pairs(true.p_range, case.n_params)
+    lo, hi = np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
+    rng = np.random.default_rng(100 * n_points + draw)
+    p = placement(case, lo, hi, n_points, rng)
+    return true, noisy_data(true, p, case.freqs_hz, rng, 0.01), lo, hi
+
+
 def run(name: str, n_points: int, draws: int, dump: list | None = None) -> list[dict[str, float]]:
     """Every draw of one case at one number of points."""
     case = CASES[name]
     rows = []
     for draw in range(draws):
-        true = case.truth(draw)
-        pairs = lpvid.data.schedule.range_pairs(true.p_range, case.n_params)
-        lo, hi = np.array([a for a, _ in pairs]), np.array([b for _, b in pairs])
-        rng = np.random.default_rng(100 * n_points + draw)
-        p = placement(case, lo, hi, n_points, rng)
-        data = noisy_data(true, p, case.freqs_hz, rng, 0.01)
+        true, data, lo, hi = measured(case, n_points, draw)
         t = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -167,7 +172,7 @@ def run(name: str, n_points: int, draws: int, dump: list | None = None) -> list[
             "seconds": seconds,
             "warnings": len(caught),
         }
-        where = np.array2string(np.round(p, 3).ravel(), separator=",")
+        where = np.array2string(np.round(data.p, 3).ravel(), separator=",")
         print(
             f"  {name} N={n_points} draw {draw}: error {err:.3g}, V/floor {row['ratio']:.3f}, "
             f"{row['groups']} groups, start {res.start}, silent {silent}, coverage {inside:.2f}, "
