@@ -7,8 +7,10 @@ Two things, both in :class:`Between`:
   more points would determine it;
 - a spread between the points: at every line and scheduling value, the
   95 % band of the covariance on the directions the points see (the
-  noise's part, first order: :func:`lpvid.trust.silent.seen_covariance`)
-  plus the committee's disagreement (:mod:`lpvid.pipeline.fewpoints`: the
+  noise's part, first order: :func:`lpvid.trust.silent.seen_covariance`,
+  narrowed along its leading directions where V_NLS rises faster than
+  first order says: :func:`lpvid.trust.profile.checked_band`) plus the
+  committee's disagreement (:mod:`lpvid.pipeline.fewpoints`: the
   distances from the returned model's FRF to the FRFs of the other fits
   within the noise of the routes whose choices competed), two parts of
   different origin added. Where the points leave the returned structure
@@ -33,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from lpvid._checks import real_array
 from lpvid.data.frf import FrfData
 from lpvid.model.lpv import LpvModel
+from lpvid.trust.profile import BandCheck, checked_band
 from lpvid.trust.silent import SilentCount, openness, range_grid
 from lpvid.trust.uncertainty import Covariance, band_radius
 
@@ -115,18 +118,30 @@ class Between:
         return None if opened is None else opened[0]
 
     @cached_property
+    def _checked(self) -> tuple[Covariance | None, BandCheck | None]:
+        opened, cov = self._open, self.covariance
+        if opened is None or cov is None or self.data is None or self.held is None:
+            return cov, None
+        count, theta = opened
+        seen = replace(cov, theta=theta, n_unidentified=cov.n_unidentified + count.silent)
+        return checked_band(seen, self.data, self.held)
+
+    @property
     def band(self) -> Covariance | None:
-        """The covariance on the directions the points see (the spread's band).
+        """The covariance on the directions the points see, checked (the spread's band).
 
         :attr:`covariance` with its silent directions left out
-        (:func:`lpvid.trust.silent.seen_covariance`); :attr:`covariance`
-        itself when not counted.
+        (:func:`lpvid.trust.silent.seen_covariance`), then narrowed along
+        its leading directions where V_NLS rises faster than first order
+        (:func:`lpvid.trust.profile.checked_band`, :attr:`check`);
+        :attr:`covariance` itself when not counted.
         """
-        opened, cov = self._open, self.covariance
-        if opened is None or cov is None:
-            return cov
-        count, theta = opened
-        return replace(cov, theta=theta, n_unidentified=cov.n_unidentified + count.silent)
+        return self._checked[0]
+
+    @property
+    def check(self) -> BandCheck | None:
+        """What the band's check beyond first order found (None: not counted)."""
+        return self._checked[1]
 
     @property
     def determined(self) -> bool | None:
@@ -208,6 +223,9 @@ class Between:
                 "route only): the spread below is the noise's part on the directions the "
                 "points see, not what the open ones allow"
             )
+        check = self.check
+        if check is not None and np.any(check.scales < 1.0):
+            lines.append(f"  the band: {check.describe()}")
         if self.data is not None and (self.band is not None or self.members):
             rel, where = self.worst()
             at = ", ".join(f"{x:.4g}" for x in where)

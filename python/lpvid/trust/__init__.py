@@ -16,6 +16,12 @@ support
 steps
     The steps :func:`lpvid.identify` adds (stable start, refit, covariance,
     stability).
+silent
+    The directions of a model the measured points hardly see (what they
+    leave open) and the covariance on those they see.
+profile
+    That covariance's band checked beyond first order along its leading
+    directions (the spread between the points).
 """
 
 from lpvid.stable.lyapunov import LyapunovCertificate
