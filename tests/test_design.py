@@ -16,8 +16,10 @@ import pytest
 
 import lpvid
 import lpvid.experiment.design as design
-from lpvid.experiment.design import factor, frozen_grams, greedy_update, updated
+import lpvid.trust.relative as relative
+from lpvid.experiment.design import factor, greedy_update, updated
 from lpvid.testing import noisy_data, one_group_lpv, random_lpv
+from lpvid.trust.uncertainty import frozen_grams
 
 
 @pytest.fixture(scope="module")
@@ -129,9 +131,9 @@ def test_chunks_and_parts_recomputed_change_nothing(res, monkeypatch):
     whole = lpvid.suggest_points(res, k=2)
     L = res.covariance.lti_covariance(0.5).shape[-1]
     # Chunks of 2-3 candidates or grid values (the last one shorter), nothing kept.
-    monkeypatch.setattr(design, "_CHUNK_ENTRIES", 3 * L * L - 1)
-    monkeypatch.setattr(design, "_KEPT_ENTRIES", 0)
-    parts = design.GridParts(res.covariance.model, res.data.freqs_hz, whole.grid[:, None])
+    monkeypatch.setattr(relative, "_CHUNK_ENTRIES", 3 * L * L - 1)
+    monkeypatch.setattr(relative, "_KEPT_ENTRIES", 0)
+    parts = relative.GridParts(res.covariance.model, res.data.freqs_hz, whole.grid[:, None])
     assert len(parts.slices) > 30 and parts._kept is None
     s = lpvid.suggest_points(res, k=2)
     np.testing.assert_array_equal(s.points, whole.points)

@@ -9,44 +9,19 @@ the information one FRF at ``p`` adds is ``P^T K P`` with ``K`` of size
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid.model.lpv import LpvModel
-from lpvid.trust.uncertainty import (
-    band_radius,
-    coefficient_weights,
-    frozen_blocks,
-    frozen_grams,
-)
+from lpvid.trust.relative import chunks
+from lpvid.trust.uncertainty import frozen_blocks
 
-__all__ = [
-    "TIE",
-    "GridParts",
-    "factor",
-    "greedy_update",
-    "relative_band",
-    "target",
-    "updated",
-]
+__all__ = ["TIE", "factor", "greedy_update", "updated"]
 
-#: Entries of the grid's parts kept in memory (200 MB), see :class:`GridParts`.
-_KEPT_ENTRIES = 25_000_000
-#: Entries per chunk of the candidates' algebra (memory of one chunk).
-_CHUNK_ENTRIES = 2_000_000
 #: Relative margin within which the criterion after two candidates ties:
 #: predicted mean variances within 0.1 % of the lowest (bands within 0.05 %)
 #: promise the same. The update agrees with an exact recomputation to about
 #: 1e-7 of that variance on the benchmark's systems.
 TIE = 1e-3
-
-
-def _chunks(m: int, per_item: int) -> list[slice]:
-    """Slices of ``range(m)`` holding at most about :data:`_CHUNK_ENTRIES` entries each."""
-    size = max(1, _CHUNK_ENTRIES // max(per_item, 1))
-    return [slice(a, min(a + size, m)) for a in range(0, m, size)]
 
 
 def factor(K: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -76,7 +51,7 @@ def _reductions(
     """
     m, L, r = R.shape
     red = np.empty(m)
-    for sl in _chunks(m, L * L):
+    for sl in chunks(m, L * L):
         Rt = R[sl].transpose(0, 2, 1)
         S = 0.5 * np.eye(r) + Rt @ frozen_blocks(C, index, w[sl]) @ R[sl]
         T = Rt @ frozen_blocks(Q, index, w[sl]) @ R[sl]
@@ -160,61 +135,3 @@ def greedy_update(
         picks.append(c)
         values.append(float(np.sum(C * W)))
     return picks, np.array(values), C
-
-
-class GridParts:
-    """The criterion's part at every grid value, by chunks: ``Re(J^H J) / ||G_m||^2`` (Q, L, L).
-
-    ``J`` the Jacobian of the frozen FRF on the frozen parameters. Kept in
-    memory up to :data:`_KEPT_ENTRIES` entries, recomputed at each use beyond.
-    """
-
-    def __init__(self, model: LpvModel, freqs_hz: NDArray, grid: NDArray) -> None:
-        self.model, self.freqs_hz, self.grid = model, freqs_hz, grid
-        lti = model.theta.size // (model.n_basis + 1)
-        self.slices = _chunks(len(grid), lti * lti)
-        self._kept = None
-        if len(grid) * lti * lti <= _KEPT_ENTRIES:
-            self._kept = [self._part(sl) for sl in self.slices]
-
-    def _part(self, sl: slice) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        p = self.grid[sl]
-        G = self.model.frf(self.freqs_hz, p)
-        norm2 = np.sum(np.abs(G) ** 2, axis=(1, 2, 3))
-        if np.any(norm2 <= 0):
-            at = p[int(np.argmin(norm2))]
-            raise ValueError(
-                f"result: the model's FRF is zero at p = {', '.join(f'{x:g}' for x in at)}; "
-                "its relative band is not defined there"
-            )
-        weights = np.broadcast_to((1.0 / norm2)[:, None, None, None], G.shape)
-        K = frozen_grams(self.model, self.freqs_hz, p, weights)
-        return coefficient_weights(self.model, p), K
-
-    def __iter__(self) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64]]]:
-        """``(w, K)`` per chunk: coefficient weights (q, Nb+1) and parts (q, L, L)."""
-        if self._kept is not None:
-            yield from self._kept
-        else:
-            for sl in self.slices:
-                yield self._part(sl)
-
-
-def target(parts: GridParts, index: NDArray) -> NDArray[np.float64]:
-    """The form ``W`` (P, P) of the criterion: the mean of the parts over the grid, on theta."""
-    k1, lti = index.shape
-    blocks = np.zeros((k1, lti, k1, lti))
-    for w, K in parts:
-        blocks += np.einsum("qi,quv,qj->iujv", w, K, w, optimize=True)
-    P = parts.model.theta.size
-    W = np.zeros((P, P))
-    W[index[:, :, None, None], index[None, None, :, :]] = blocks / len(parts.grid)
-    return W
-
-
-def relative_band(C: NDArray, parts: GridParts, index: NDArray) -> NDArray[np.float64]:
-    """``band_radius(0.95) * sqrt(E||dG||^2) / ||G_m||`` at the grid values, for covariance C."""
-    out = []
-    for w, K in parts:
-        out.append(np.sum(frozen_blocks(C, index, w) * K, axis=(1, 2)))
-    return band_radius(0.95) * np.sqrt(np.maximum(np.concatenate(out), 0.0))

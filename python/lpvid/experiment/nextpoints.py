@@ -71,16 +71,10 @@ from lpvid._rows import unique_rows
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import range_fraction, range_pairs, scale_grid
-from lpvid.experiment.design import (
-    TIE,
-    GridParts,
-    factor,
-    greedy_update,
-    relative_band,
-    target,
-)
+from lpvid.experiment.design import TIE, factor, greedy_update
 from lpvid.fit.judge import identify_range
 from lpvid.pipeline.result import IdentifyResult
+from lpvid.trust.relative import GridParts, relative_band, target
 from lpvid.trust.uncertainty import (
     Covariance,
     _lti_index,

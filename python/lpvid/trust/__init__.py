@@ -22,6 +22,9 @@ silent
 profile
     That covariance's band checked beyond first order along its leading
     directions (the spread between the points).
+relative
+    The relative FRF's sensitivity over a grid of scheduling values (the
+    band's form over the range).
 """
 
 from lpvid.stable.lyapunov import LyapunovCertificate

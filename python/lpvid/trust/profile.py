@@ -12,7 +12,7 @@ error. So each leading direction of the band is checked:
 
 - **Leading directions.** With ``C = S S^T`` on the free parameters and
   ``W`` the mean over the range of the relative FRF's sensitivity
-  (:func:`lpvid.experiment.design.target`, on the grid of
+  (:func:`lpvid.trust.relative.target`, on the grid of
   :func:`lpvid.trust.silent.range_grid`), the eigenvectors ``z`` of
   ``S^T W S`` in order of their variance over the range; ``d = S z`` is a
   step of one standard deviation, and ``a^T theta`` with ``a = S^+T z`` the
@@ -59,8 +59,8 @@ from numpy.typing import NDArray
 
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
-from lpvid.experiment.design import GridParts, target
 from lpvid.fit.cost import build_problem
+from lpvid.trust.relative import GridParts, target
 from lpvid.trust.silent import _sym, range_grid
 from lpvid.trust.uncertainty import Covariance, _lti_index
 
