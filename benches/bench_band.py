@@ -40,10 +40,8 @@ from lpvid.trust.uncertainty import band_radius
 
 def first_order(between):
     """A copy of ``between`` whose band is the first-order one (the check undone)."""
-    opened, cov = between._open, between.covariance
-    band = replace(cov, theta=opened[1], n_unidentified=cov.n_unidentified + opened[0].silent)
     other = replace(between)
-    other.__dict__.update(_open=opened, _checked=(band, None))
+    other.__dict__.update(_open=between._open, _checked=(between._seen, None))
     return other
 
 

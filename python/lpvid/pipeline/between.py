@@ -118,12 +118,19 @@ class Between:
         return None if opened is None else opened[0]
 
     @cached_property
-    def _checked(self) -> tuple[Covariance | None, BandCheck | None]:
+    def _seen(self) -> Covariance | None:
+        """:attr:`covariance` with its silent directions left out (None: not counted)."""
         opened, cov = self._open, self.covariance
-        if opened is None or cov is None or self.data is None or self.held is None:
-            return cov, None
+        if opened is None or cov is None:
+            return None
         count, theta = opened
-        seen = replace(cov, theta=theta, n_unidentified=cov.n_unidentified + count.silent)
+        return replace(cov, theta=theta, n_unidentified=cov.n_unidentified + count.silent)
+
+    @cached_property
+    def _checked(self) -> tuple[Covariance | None, BandCheck | None]:
+        seen = self._seen
+        if seen is None or self.data is None or self.held is None:
+            return self.covariance, None
         return checked_band(seen, self.data, self.held)
 
     @property

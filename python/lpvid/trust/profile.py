@@ -131,19 +131,23 @@ class _Profile:
         self.theta = covariance.model.theta
         self.free = free
         self.evaluations = 0
-        v0, g, h = self._gauss_newton(self.theta, np.zeros(int(free.sum())))
+        v0, g, h = self._gauss_newton(np.zeros(int(free.sum())))
         self.v0 = v0
         # V_NLS's least on the free parameters is within SETTLED of the model's when
         # Gauss-Newton's predicted decrease g^T h^+ g / 4 is (a refitted model)
         gain = 0.25 * float(g @ np.linalg.lstsq(h, g, rcond=1e-12)[0])
         self.at_least = gain <= SETTLED
 
+    def _at(self, step: NDArray) -> NDArray:
+        """``theta`` with ``step`` added to its free parameters."""
+        theta = self.theta.copy()
+        theta[self.free] += step
+        return theta
+
     def fixed(self, d: NDArray, t: float) -> float:
         """The rise of V_NLS at ``theta + t d``, nothing else moved."""
-        th = self.theta.copy()
-        th[self.free] += t * d
         self.evaluations += 1
-        return float(self.problem.vnls(th)) - self.v0
+        return float(self.problem.vnls(self._at(t * d))) - self.v0
 
     def rise(
         self, d: NDArray, a: NDArray, t: float, start: NDArray, low: float = -math.inf
@@ -155,11 +159,8 @@ class _Profile:
         :data:`STEPS` steps. Returns the rise and the offset reached
         (orthogonal to ``a``).
         """
-        free = self.free
-        base = self.theta.copy()
-        base[free] += t * d
         offset = start.copy()
-        v, g, h = self._gauss_newton(base, offset)
+        v, g, h = self._gauss_newton(t * d + offset)
         an = a / np.linalg.norm(a)
         hold = np.eye(an.size) - np.outer(an, an)
         pin = np.outer(an, an) * float(np.max(np.diag(h)))
@@ -174,7 +175,7 @@ class _Profile:
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
-            vt, gt, ht = self._gauss_newton(base, offset + step)
+            vt, gt, ht = self._gauss_newton(t * d + offset + step)
             if vt < v:
                 offset, lam = offset + step, lam * 0.3
                 settled = v - vt <= SETTLED
@@ -185,11 +186,9 @@ class _Profile:
                 lam *= 10.0
         return v - self.v0, offset
 
-    def _gauss_newton(self, base: NDArray, offset: NDArray) -> tuple[float, NDArray, NDArray]:
-        theta = base.copy()
-        theta[self.free] += offset
+    def _gauss_newton(self, step: NDArray) -> tuple[float, NDArray, NDArray]:
         self.evaluations += 1
-        v, g, h = self.problem.gauss_newton(theta, self.free)
+        v, g, h = self.problem.gauss_newton(self._at(step), self.free)
         return float(v), g, h.reshape(g.size, g.size)
 
 
@@ -251,7 +250,7 @@ def checked_band(
     model = covariance.model
     free = ~np.asarray(held, dtype=bool)
     C = covariance.theta[np.ix_(free, free)]
-    lam, U = np.linalg.eigh(0.5 * (C + C.T))
+    lam, U = np.linalg.eigh(_sym(C))
     keep = lam > (lam[-1] if lam.size else 0.0) * 1e-13
     nothing = BandCheck(np.zeros(0), np.zeros(0), np.zeros((0, free.size)), 0)
     if not np.any(keep):
@@ -266,17 +265,16 @@ def checked_band(
         return covariance, nothing
     k = min(MOST, int(np.searchsorted(np.cumsum(var) / total, TOP)) + 1)
     profile = _Profile(covariance, data, free)
-    scales = np.ones(Z.shape[1])
-    for j in range(k):
-        d, a = S @ Z[:, j], S_plus @ Z[:, j]
-        scales[j] = _scale(profile, d, a)
+    D, A = S @ Z[:, :k], S_plus @ Z[:, :k]  # the steps d and the quantities a, by column
+    scales = np.array([_scale(profile, D[:, j], A[:, j]) for j in range(k)])
     steps = np.zeros((k, free.size))
-    steps[:, free] = (S @ Z[:, :k]).T
-    check = BandCheck(scales[:k].copy(), var[:k] / total, steps, profile.evaluations)
-    narrowed = np.flatnonzero(scales < 1.0)
-    if narrowed.size == 0:
+    steps[:, free] = D.T
+    check = BandCheck(scales, var[:k] / total, steps, profile.evaluations)
+    narrowed = scales < 1.0
+    if not np.any(narrowed):
         return covariance, check
-    D = S @ Z[:, narrowed]  # C = S Z Z^T S^T: take out (1 - scale^2) of each narrowed part
+    # C = S Z Z^T S^T: take out (1 - scale^2) of each narrowed direction's part
+    Dn = D[:, narrowed]
     full = covariance.theta.copy()
-    full[np.ix_(free, free)] = _sym(C - (D * (1.0 - scales[narrowed] ** 2)) @ D.T)
+    full[np.ix_(free, free)] = _sym(C - (Dn * (1.0 - scales[narrowed] ** 2)) @ Dn.T)
     return replace(covariance, theta=full), check
