@@ -274,6 +274,8 @@ def test_one_fit_reached_from_several_starts_is_taken_from_the_first():
     assert _best(refined((False, tie), (False, 100.0), (True, 50.0)), starts)[0] == "m0"
     assert _best(refined((False, 100.0 * (1 + 2 * SAME_FIT)), (False, 100.0)), starts)[0] == "m1"
     assert _best(refined((True, 50.0), (False, 101.0)), starts)[1:] == (101.0, True, "s1")
+    assert _best(refined((False, np.nan), (False, 101.0)), starts)[0] == "m1"
+    assert _best(refined((True, np.inf), (True, 7.0)), starts)[0] == "m1"
 
 
 @pytest.mark.parametrize("seed", [0, 8])

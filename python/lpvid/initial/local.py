@@ -200,9 +200,11 @@ def _best(
 
     The best is kept: stable ones first when the models were to be stable,
     then the lowest V_NLS, where V_NLS within :data:`SAME_FIT` of the
-    lowest ties and the first in the starts' order wins.
+    lowest ties and the first in the starts' order wins (a V_NLS that is
+    not finite is the highest).
     """
-    ranks = [r[2] for r in refined]
+    # A V_NLS that is not finite ranks last (NaN would compare with nothing).
+    ranks = [(kind, cost if np.isfinite(cost) else np.inf) for _, _, (kind, cost) in refined]
     best = min(ranks)
     tied = [
         i
