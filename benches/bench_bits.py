@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from bench_few import CASES, FIXED, measured, unseen
@@ -31,8 +32,18 @@ EPS = 1e-12
 SEEDS = (1, 2)
 
 
-def runs(name: str, n_points: int, draw: int) -> list[tuple]:
-    """The result on the draw's data, then on its two perturbations."""
+@dataclass
+class Run:
+    """One identify of a draw: its choice, its worst error against the truth, its models."""
+
+    choice: tuple[str, float, str]
+    error: float
+    model: lpvid.LpvModel
+    local: lpvid.LocalModels
+
+
+def runs(name: str, n_points: int, draw: int) -> tuple[list[Run], np.ndarray]:
+    """The result on the draw's data, then on its two perturbations; the unseen values."""
     case = CASES[name]
     true, data, lo, hi = measured(case, n_points, draw)
     at = unseen(case, lo, hi)
@@ -47,8 +58,8 @@ def runs(name: str, n_points: int, draw: int) -> list[tuple]:
             res = lpvid.identify(d, case.n, true.basis, fixed=FIXED)
         choice = (res.start, res.entry.gamma, str(res.entry.nonzero_groups))
         error = worst_relative_error(res.model, true, case.freqs_hz, at)
-        out.append((choice, error, res.model, res.local, at, case.freqs_hz))
-    return out
+        out.append(Run(choice, error, res.model, res.local))
+    return out, at
 
 
 def _local_moved(a, b) -> bool:
@@ -74,21 +85,19 @@ def main() -> None:
             moved = local = 0
             ratio = 1.0
             for draw in range(args.first, args.first + args.draws):
-                found = runs(name, n, draw)
-                base = found[0]
-                apart = max(
-                    worst_relative_error(r[2], base[2], base[5], base[4]) for r in found[1:]
-                )
-                same = all(r[0] == base[0] for r in found) and apart <= 1e-6
+                found, at = runs(name, n, draw)
+                base, freqs = found[0], CASES[name].freqs_hz
+                apart = max(worst_relative_error(r.model, base.model, freqs, at) for r in found[1:])
+                same = all(r.choice == base.choice for r in found) and apart <= 1e-6
                 moved += not same
-                local += any(_local_moved(base[3], r[3]) for r in found[1:])
-                errors = [r[1] for r in found]
+                local += any(_local_moved(base.local, r.local) for r in found[1:])
+                errors = [r.error for r in found]
                 ratio = max(ratio, max(errors) / min(errors))
                 print(
                     f"  {name} N={n} draw {draw}: {'same' if same else 'MOVED'} "
                     f"(models {apart:.1e} apart), errors "
                     + " / ".join(f"{e:.3g}" for e in errors)
-                    + ("" if same else "; " + " | ".join(f"{r[0]}" for r in found)),
+                    + ("" if same else "; " + " | ".join(f"{r.choice}" for r in found)),
                     flush=True,
                 )
             lines.append(
