@@ -9,6 +9,7 @@
 use crate::base::data::FrfData;
 use crate::base::lanes::{Cx, LANES};
 use crate::base::layout::{FreeSet, Matrix, Shape};
+use crate::base::spread::{self, worth_spreading};
 use crate::error::{invalid, Error, Result};
 use crate::eval::kron_gram::{GramParts, KronGram};
 use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
@@ -18,7 +19,6 @@ use crate::eval::point_factors::{worth_it, PointFactors};
 use crate::eval::point_sums::PointSums;
 use crate::memory::{try_par_columns_by, try_vec};
 use num_complex::Complex64 as C64;
-use rayon::prelude::*;
 use std::mem::MaybeUninit;
 use std::sync::Mutex;
 
@@ -109,7 +109,11 @@ impl Problem {
         self.shape.check_theta(theta)?;
         let forms = self.forms(theta);
         let mut out = try_vec(self.n_residuals(), C64::new(0.0, 0.0), "the residuals")?;
-        self.split(&mut out).into_par_iter().try_for_each_init(
+        let tasks = self.split(&mut out);
+        let spread = worth_spreading(tasks.len(), self.residual_work());
+        spread::try_for_each_init(
+            tasks,
+            spread,
             || Resolvent::new(&self.shape),
             |res, (task, slice)| {
                 for first in (task.first..task.end).step_by(LANES) {
@@ -143,29 +147,37 @@ impl Problem {
         let per_task = lines_per_task(&self.shape);
         let sums = PointSums::new(self.data.n_points());
         let spare = Mutex::new(Vec::new());
-        self.split(&mut residual)
-            .into_par_iter()
-            .try_for_each_init(
-                || Lent::from(&spare, &self.shape),
-                |ws, (task, slice)| {
-                    let ws = ws.as_mut().map_err(|e| e.clone())?.get()?;
-                    let part = self.task_gram(&forms[task.point], task, slice, ws, &sums)?;
-                    sums.add(task.point, task.first / per_task, part);
-                    Ok::<_, Error>(())
-                },
-            )?;
+        let tasks = self.split(&mut residual);
+        let spread = worth_spreading(tasks.len(), self.gram_work());
+        spread::try_for_each_init(
+            tasks,
+            spread,
+            || Lent::from(&spare, &self.shape),
+            |ws, (task, slice)| {
+                let ws = ws.as_mut().map_err(|e| e.clone())?.get()?;
+                let part = self.task_gram(&forms[task.point], task, slice, ws, &sums)?;
+                sums.add(task.point, task.first / per_task, part);
+                Ok::<_, Error>(())
+            },
+        )?;
         let sums = sums
             .into_sums()
             .ok_or_else(|| Error::Internal("a task's Gram pieces went missing".into()))?;
-        let unfolded = sums
-            .into_par_iter()
-            .map(|sum| match sum {
-                Some(sum) => Ok((sum.gram(&self.shape)?, sum.jtr)),
-                None => {
-                    let empty = "the Gram matrix of one scheduling point";
-                    Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]))
-                }
-            })
+        // Unfolding a point's sums is about `lti^2` per point.
+        let unfold = (self.data.n_points() * lti * lti) as f64;
+        let unfolded =
+            spread::map(
+                sums,
+                worth_spreading(self.data.n_points(), unfold),
+                |sum| match sum {
+                    Some(sum) => Ok((sum.gram(&self.shape)?, sum.jtr)),
+                    None => {
+                        let empty = "the Gram matrix of one scheduling point";
+                        Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]))
+                    }
+                },
+            )
+            .into_iter()
             .collect::<Result<Vec<_>>>()?;
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
@@ -199,10 +211,32 @@ impl Problem {
 
     /// Hessenberg forms of the frozen models at every point.
     fn forms(&self, theta: &[f64]) -> Vec<Hessenberg> {
-        (0..self.data.n_points())
-            .into_par_iter()
-            .map(|q| Hessenberg::new(&self.shape, &Frozen::at(&self.shape, theta, self.psi(q))))
-            .collect()
+        let (n, points) = (self.shape.n, self.data.n_points());
+        // A Hessenberg reduction is about 10 n^3 / 3 flops.
+        let spread = worth_spreading(points, (10 * n * n * n * points) as f64 / 3.0);
+        spread::map((0..points).collect(), spread, |q| {
+            Hessenberg::new(&self.shape, &Frozen::at(&self.shape, theta, self.psi(q)))
+        })
+    }
+
+    /// Flops of one evaluation of the residuals: about `8 n^2` for each
+    /// input column of a line (a Hessenberg solve) at every point.
+    fn residual_work(&self) -> f64 {
+        let s = &self.shape;
+        (8 * s.n * s.n * s.r) as f64 * self.lines_in_all()
+    }
+
+    /// Flops of one evaluation's Gram pieces: about `8 L^2` a line at
+    /// every point (`L` the LTI parameters), and the solves of both sides.
+    fn gram_work(&self) -> f64 {
+        let s = &self.shape;
+        let per_line = 8 * s.lti_len() * s.lti_len() + 8 * s.n * s.n * (s.l + s.r);
+        per_line as f64 * self.lines_in_all()
+    }
+
+    /// Lines over every point.
+    fn lines_in_all(&self) -> f64 {
+        (self.data.n_points() * self.data.n_lines()) as f64
     }
 
     /// Cut the lines of every point into tasks, each with its slice of `out`.
@@ -363,7 +397,10 @@ impl Problem {
         // SAFETY: the runs cover 0..nf in order (the first starts at 0,
         // each ends where the next starts, the last at nf), and `fill`
         // writes every entry of each run.
-        let gram = unsafe { try_par_columns_by(nf, nf, fill, "the Gauss-Newton matrix J^T J") }?;
+        // A term of every point an entry.
+        let spread = worth_spreading(nf, (nf * nf * n_points) as f64);
+        let what = "the Gauss-Newton matrix J^T J";
+        let gram = unsafe { try_par_columns_by(nf, nf, fill, spread, what) }?;
         let gradient = free
             .indices()
             .iter()

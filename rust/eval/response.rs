@@ -1,11 +1,11 @@
 //! Batched frequency responses of an LPV model at frozen scheduling values.
 
 use crate::base::lanes::LANES;
+use crate::base::spread::{self, worth_spreading};
 use crate::error::{Error, Result};
 use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use crate::eval::model::ModelAt;
 use num_complex::Complex64 as C64;
-use rayon::prelude::*;
 
 /// Evaluate the resolvent of every frozen model at every line, `LANES`
 /// lines at a time, in parallel over the points, and let `fill` write what
@@ -35,9 +35,16 @@ where
     if stride == 0 {
         return Ok(out);
     }
-    out.par_chunks_mut(stride)
-        .enumerate()
-        .try_for_each(|(q, chunk)| {
+    // About 8 n^2 flops for each input column (and output row, with the
+    // sides) of a line.
+    let sweeps = if sides { shape.l + shape.r } else { shape.r };
+    let work = (8 * shape.n * shape.n * sweeps * z.len() * n_points) as f64;
+    let chunks = out.chunks_mut(stride).enumerate().collect();
+    spread::try_for_each_init(
+        chunks,
+        worth_spreading(n_points, work),
+        || (),
+        |_, (q, chunk)| {
             let form = Hessenberg::new(shape, &Frozen::at(shape, theta, &psi[q * m..(q + 1) * m]));
             let mut res = Resolvent::new(shape);
             for first in (0..z.len()).step_by(LANES) {
@@ -50,7 +57,8 @@ where
                 fill(q, chunk, &res, first, end)?;
             }
             Ok(())
-        })?;
+        },
+    )?;
     Ok(out)
 }
 

@@ -6,6 +6,7 @@
 
 use crate::base::dense::{cholesky_solve, factor_lower};
 use crate::base::layout::FreeSet;
+use crate::base::spread::{self, worth_spreading};
 use crate::error::{invalid, Result};
 use crate::eval::objective::{GaussNewton, Objective};
 use crate::eval::point_factors::FactoredSystem;
@@ -14,7 +15,6 @@ use crate::fit::{
 };
 use crate::memory::try_par_columns;
 use faer::{Mat, MatMut};
-use rayon::prelude::*;
 use std::time::Instant;
 
 /// Settings of [`levenberg_marquardt`].
@@ -95,6 +95,7 @@ pub fn lm_step(gn: &GaussNewton, diag: &[f64], mu: f64) -> Result<Option<Vec<f64
                 g
             }
         },
+        worth_spreading(m, (m * m) as f64),
         "the factor of the Levenberg-Marquardt step",
     )?;
     let mut l = MatMut::from_column_major_slice_mut(&mut factor, m, m);
@@ -146,11 +147,10 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
     let gd: f64 = gn.gradient.iter().zip(d).map(|(g, x)| g * x).sum();
     // Each column's sum in order (the columns in parallel), then their
     // weighted sum in column order.
-    let columns: Vec<f64> = gn
-        .gram
-        .par_chunks(m.max(1))
-        .map(|col| col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>())
-        .collect();
+    let spread = worth_spreading(m, (2 * m * m) as f64);
+    let columns: Vec<f64> = spread::map(gn.gram.chunks(m.max(1)).collect(), spread, |col| {
+        col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>()
+    });
     let quad = columns.iter().zip(d).fold(0.0, |q, (c, x)| q + x * c);
     -(gd + quad)
 }

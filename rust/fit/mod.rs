@@ -7,6 +7,8 @@
 
 pub mod estimate;
 pub mod lm;
+#[cfg(test)]
+mod spread_tests;
 pub mod stable;
 
 use crate::error::{invalid, Result};

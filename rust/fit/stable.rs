@@ -27,12 +27,12 @@
 //! (`lpvid.stability`) and adds the points it finds.
 
 use crate::base::layout::{FreeSet, Matrix, Shape};
+use crate::base::spread::{self, worth_spreading};
 use crate::error::{invalid, Error, Result};
 use crate::eval::objective::{GaussNewton, Objective};
 use nalgebra::linalg::Schur;
 use nalgebra::DMatrix;
 use num_complex::Complex64 as C64;
-use rayon::prelude::*;
 use std::sync::Mutex;
 
 /// Local minima of the coarse margins refined by [`FrozenRange::worst`].
@@ -202,10 +202,16 @@ impl FrozenRange {
     /// The margin at every check point.
     pub fn margins(&self, shape: &Shape, theta: &[f64]) -> Result<Vec<f64>> {
         self.check_shape(shape, theta)?;
-        (0..self.len())
-            .into_par_iter()
-            .map(|k| self.margin_at(shape, theta, k))
-            .collect()
+        let points: Vec<usize> = (0..self.len()).collect();
+        self.margins_at(shape, theta, points).into_iter().collect()
+    }
+
+    /// The margin at each of the check points `points`, in their order (on
+    /// the pool when the eigenvalues are worth it: about `25 n^3` flops each).
+    fn margins_at(&self, shape: &Shape, theta: &[f64], points: Vec<usize>) -> Vec<Result<f64>> {
+        let work = (25 * shape.n * shape.n * shape.n * points.len()) as f64;
+        let spread = worth_spreading(points.len(), work);
+        spread::map(points, spread, |k| self.margin_at(shape, theta, k))
     }
 
     /// The smallest margin found and its check point: every `stride`-th
@@ -219,9 +225,9 @@ impl FrozenRange {
         if coarse.last() != Some(&last) {
             coarse.push(last);
         }
-        let values: Vec<f64> = coarse
-            .par_iter()
-            .map(|&k| self.margin_at(shape, theta, k))
+        let values: Vec<f64> = self
+            .margins_at(shape, theta, coarse.clone())
+            .into_iter()
             .collect::<Result<_>>()?;
         let mut best = (0..coarse.len())
             .map(|i| (coarse[i], values[i]))
@@ -237,18 +243,20 @@ impl FrozenRange {
             .collect();
         minima.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
         minima.truncate(REFINED_MINIMA);
-        let refined: Vec<(usize, f64)> = minima
-            .par_iter()
-            .map(|&i| {
-                let lo = coarse[i.saturating_sub(1)];
-                let hi = coarse[(i + 1).min(coarse.len() - 1)];
-                (lo..=hi)
-                    .map(|k| self.margin_at(shape, theta, k).map(|v| (k, v)))
-                    .try_fold((lo, f64::INFINITY), |a, b| {
-                        b.map(|b| if b.1 < a.1 { b } else { a })
-                    })
-            })
-            .collect::<Result<_>>()?;
+        // Each minimum's neighbourhood: up to 2 stride + 1 check points.
+        let each = 25 * shape.n * shape.n * shape.n * (2 * self.stride + 1);
+        let spread = worth_spreading(minima.len(), (each * minima.len()) as f64);
+        let refined: Vec<(usize, f64)> = spread::map(minima, spread, |i| {
+            let lo = coarse[i.saturating_sub(1)];
+            let hi = coarse[(i + 1).min(coarse.len() - 1)];
+            (lo..=hi)
+                .map(|k| self.margin_at(shape, theta, k).map(|v| (k, v)))
+                .try_fold((lo, f64::INFINITY), |a, b| {
+                    b.map(|b| if b.1 < a.1 { b } else { a })
+                })
+        })
+        .into_iter()
+        .collect::<Result<_>>()?;
         for r in refined {
             if r.1 < best.1 {
                 best = r;

@@ -182,11 +182,14 @@ pub fn try_mat(
 /// [`Error::OutOfMemory`] naming `what`: for the dense matrices of every
 /// step (`J^T J`, the Levenberg-Marquardt factor: 336 MB each at n = 32
 /// 4 x 4), which a serial pass of zeros and then of values kept one core
-/// waiting.
+/// waiting. On the pool when `spread`, else in order on this thread (for
+/// matrices too small to be worth the pool:
+/// [`crate::base::spread::worth_spreading`]).
 pub fn try_par_columns(
     rows: usize,
     cols: usize,
     f: impl Fn(usize, usize) -> f64 + Sync,
+    spread: bool,
     what: &'static str,
 ) -> Result<Vec<f64>> {
     let fill = |j: usize, col: &mut [MaybeUninit<f64>]| {
@@ -195,7 +198,7 @@ pub fn try_par_columns(
         }
     };
     // SAFETY: `fill` writes every slot of the column it is given.
-    unsafe { try_par_columns_by(rows, cols, fill, what) }
+    unsafe { try_par_columns_by(rows, cols, fill, spread, what) }
 }
 
 /// As [`try_par_columns`], every column `j` written whole by
@@ -209,16 +212,23 @@ pub unsafe fn try_par_columns_by(
     rows: usize,
     cols: usize,
     fill: impl Fn(usize, &mut [MaybeUninit<f64>]) + Sync,
+    spread: bool,
     what: &'static str,
 ) -> Result<Vec<f64>> {
     let len = rows.saturating_mul(cols);
     let mut v = Vec::new();
     try_grow(&mut v, len, what)?;
     if rows > 0 {
-        v.spare_capacity_mut()[..len]
-            .par_chunks_mut(rows)
-            .enumerate()
-            .for_each(|(j, col)| fill(j, col));
+        let room = &mut v.spare_capacity_mut()[..len];
+        if spread {
+            room.par_chunks_mut(rows)
+                .enumerate()
+                .for_each(|(j, col)| fill(j, col));
+        } else {
+            room.chunks_mut(rows)
+                .enumerate()
+                .for_each(|(j, col)| fill(j, col));
+        }
     }
     // SAFETY: `try_grow` made room for `len` values and `fill` wrote every
     // slot of each of the `cols` chunks of `rows` slots (the caller's
@@ -276,23 +286,29 @@ mod tests {
         // 2^62 entries of 8 bytes: the size saturates.
         assert!(matches!(e, Error::OutOfMemory { bytes, .. } if bytes == usize::MAX));
         assert!(probe(usize::MAX / 2, "a probe").is_err());
-        let e = try_par_columns(1 << 31, 1 << 31, |_, _| 0.0, "a test array").unwrap_err();
+        let e = try_par_columns(1 << 31, 1 << 31, |_, _| 0.0, true, "a test array").unwrap_err();
         assert!(matches!(e, Error::OutOfMemory { bytes, .. } if bytes == usize::MAX));
     }
 
     /// Every entry where a column-major array keeps it, also when the
     /// columns are many (rayon splits them among the threads) and when
-    /// there are none.
+    /// there are none, on the pool and in order.
     #[test]
     fn par_columns_hold_every_entry_in_column_major_order() {
-        for (rows, cols) in [(3, 4), (1, 1000), (257, 65)] {
-            let f = |i: usize, j: usize| (1000 * i + j) as f64;
-            let v = try_par_columns(rows, cols, f, "v").unwrap();
-            let want: Vec<f64> = (0..rows * cols).map(|k| f(k % rows, k / rows)).collect();
-            assert_eq!(v, want);
+        for spread in [true, false] {
+            for (rows, cols) in [(3, 4), (1, 1000), (257, 65)] {
+                let f = |i: usize, j: usize| (1000 * i + j) as f64;
+                let v = try_par_columns(rows, cols, f, spread, "v").unwrap();
+                let want: Vec<f64> = (0..rows * cols).map(|k| f(k % rows, k / rows)).collect();
+                assert_eq!(v, want);
+            }
+            assert!(try_par_columns(0, 5, |_, _| 1.0, spread, "v")
+                .unwrap()
+                .is_empty());
+            assert!(try_par_columns(5, 0, |_, _| 1.0, spread, "v")
+                .unwrap()
+                .is_empty());
         }
-        assert!(try_par_columns(0, 5, |_, _| 1.0, "v").unwrap().is_empty());
-        assert!(try_par_columns(5, 0, |_, _| 1.0, "v").unwrap().is_empty());
     }
 
     #[test]
