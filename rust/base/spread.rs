@@ -5,8 +5,10 @@
 //! the binding runs: the calling thread is Python's) hands its work to the
 //! pool and sleeps until it is done: a wake-up and a sleep on each side,
 //! tens of microseconds, however little the work. A local model's fit
-//! (one point, SISO, n = 10, 200 lines: one task) crossed that way five
-//! times a Levenberg-Marquardt step. Loops of little work run here, in
+//! (one point, SISO, n = 10, 200 lines: one task) crossed that way six
+//! times a Levenberg-Marquardt step (the frozen forms, the lines, the
+//! Gram unfolding, `J^T J`, the step's copy and its predicted decrease),
+//! twice more for every trial point. Loops of little work run here, in
 //! order; the results are the same to the last bit either way, since every
 //! loop that goes through these helpers keeps its items' order (sums in
 //! task order, results collected in place).
