@@ -110,7 +110,7 @@ impl Problem {
         let forms = self.forms(theta);
         let mut out = try_vec(self.n_residuals(), C64::new(0.0, 0.0), "the residuals")?;
         let tasks = self.split(&mut out);
-        let spread = worth_spreading(tasks.len(), self.residual_work());
+        let spread = worth_spreading(tasks.len(), self.work(false));
         spread::try_for_each_init(
             tasks,
             spread,
@@ -148,7 +148,7 @@ impl Problem {
         let sums = PointSums::new(self.data.n_points());
         let spare = Mutex::new(Vec::new());
         let tasks = self.split(&mut residual);
-        let spread = worth_spreading(tasks.len(), self.gram_work());
+        let spread = worth_spreading(tasks.len(), self.work(true));
         spread::try_for_each_init(
             tasks,
             spread,
@@ -222,24 +222,20 @@ impl Problem {
         })
     }
 
-    /// Flops of one evaluation of the residuals: about `8 n^2` for each
-    /// input column of a line (a Hessenberg solve) at every point.
-    fn residual_work(&self) -> f64 {
-        let s = &self.shape;
-        (8 * s.n * s.n * s.r) as f64 * self.lines_in_all()
-    }
-
-    /// Flops of one evaluation's Gram pieces: about `8 L^2` a line at
-    /// every point (`L` the LTI parameters), and the solves of both sides.
-    fn gram_work(&self) -> f64 {
-        let s = &self.shape;
-        let per_line = 8 * s.lti_len() * s.lti_len() + 8 * s.n * s.n * (s.l + s.r);
-        per_line as f64 * self.lines_in_all()
-    }
-
-    /// Lines over every point.
-    fn lines_in_all(&self) -> f64 {
-        (self.data.n_points() * self.data.n_lines()) as f64
+    /// Flops of one evaluation of the residuals (`gram` false: a
+    /// Hessenberg solve of about `8 n^2` for each input column of a line)
+    /// or of the Gram pieces too (about `8 L^2` more a line, `L` the LTI
+    /// parameters, and the solves of the output side), over every point.
+    fn work(&self, gram: bool) -> f64 {
+        let (s, lines) = (&self.shape, self.data.n_points() * self.data.n_lines());
+        let solves = 8 * s.n * s.n * if gram { s.l + s.r } else { s.r };
+        let per_line = solves
+            + if gram {
+                8 * s.lti_len() * s.lti_len()
+            } else {
+                0
+            };
+        (per_line * lines) as f64
     }
 
     /// Cut the lines of every point into tasks, each with its slice of `out`.
