@@ -26,7 +26,7 @@ actual worst error). The summary line of each (case, N) gives the median,
 models sit more than twice their noise floor, and the median seconds.
 
 Run: python benches/bench_few.py [--cases mor onegroup cross2] [--points 3 4 5 6]
-     [--draws 20] [--json out.json]
+     [--draws 20] [--first 0] [--json out.json] [--dump out.pkl]
 """
 
 from __future__ import annotations
@@ -123,11 +123,13 @@ def measured(case: Case, n_points: int, draw: int):
     return true, noisy_data(true, p, case.freqs_hz, rng, 0.01), lo, hi
 
 
-def run(name: str, n_points: int, draws: int, dump: list | None = None) -> list[dict[str, float]]:
-    """Every draw of one case at one number of points."""
+def run(
+    name: str, n_points: int, draws: int, dump: list | None = None, first: int = 0
+) -> list[dict[str, float]]:
+    """Draws ``first`` to ``first + draws - 1`` of one case at one number of points."""
     case = CASES[name]
     rows = []
-    for draw in range(draws):
+    for draw in range(first, first + draws):
         true, data, lo, hi = measured(case, n_points, draw)
         t = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
@@ -211,6 +213,7 @@ def main() -> None:
     parser.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES))
     parser.add_argument("--points", nargs="+", type=int, default=None)
     parser.add_argument("--draws", type=int, default=20)
+    parser.add_argument("--first", type=int, default=0, help="the first draw")
     parser.add_argument("--json", default=None, help="write every row to this file")
     parser.add_argument("--dump", default=None, help="pickle the FRFs at the unseen points here")
     args = parser.parse_args()
@@ -219,7 +222,7 @@ def main() -> None:
     lines = []
     for name in args.cases:
         for n_points in args.points or CASES[name].default_points:
-            rows = run(name, n_points, args.draws, dump)
+            rows = run(name, n_points, args.draws, dump, args.first)
             out[f"{name} N={n_points}"] = rows
             lines.append(summary(name, n_points, rows))
             print(lines[-1], flush=True)
