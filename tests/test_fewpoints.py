@@ -113,6 +113,24 @@ def test_where_the_points_determine_the_structure_the_fits_are_votes():
             assert "the data are silent" in between.summary()
 
 
+def test_the_spread_counts_the_stable_members_when_there_are_any():
+    """As the consensus: a fit unstable between the points is left out of the committee's part."""
+    data = _data([0.02, 0.5, 1.0])
+    far, near = _shifted(TRUE, 1.1), _shifted(TRUE, 1.001)
+    p = np.array([0.3, 0.7])
+    dev_far, dev_near = (np.abs(m.frf(FREQS, p) - TRUE.frf(FREQS, p)) for m in (far, near))
+    mixed = Between(TRUE, [_member(far, 0, stable=False), _member(near, 1)], None, data)
+    assert mixed.voters == [mixed.members[1]]
+    np.testing.assert_allclose(mixed.spread(FREQS, p), dev_near)
+    assert "1 of them unstable between the points, left out of the spread" in mixed.summary()
+    # none stable: every member counts, and nothing is said of it
+    unstable = Between(TRUE, [_member(m, k, stable=False) for k, m in enumerate((far, near))])
+    np.testing.assert_allclose(unstable.spread(FREQS, p), dev_far)
+    every = Between(TRUE, [_member(far, 0), _member(near, 1)], None, data)
+    np.testing.assert_allclose(every.spread(FREQS, p), dev_far)
+    assert "left out of the spread" not in every.summary()
+
+
 def test_the_spread_takes_one_line_or_many_and_needs_no_covariance():
     data = _data([0.02, 0.5, 1.0])
     cov = lpvid.covariance(TRUE, data, FIXED, warn=False)
