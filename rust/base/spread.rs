@@ -74,8 +74,9 @@ where
 
 /// `op` of every item, in the items' order: on the pool when `spread`,
 /// else in order on this thread.
-pub fn map<T, R, F>(items: Vec<T>, spread: bool, op: F) -> Vec<R>
+pub fn map<I, T, R, F>(items: I, spread: bool, op: F) -> Vec<R>
 where
+    I: IntoParallelIterator<Item = T> + IntoIterator<Item = T>,
     T: Send,
     R: Send,
     F: Fn(T) -> R + Sync + Send,
@@ -101,7 +102,7 @@ mod tests {
     #[test]
     fn both_ways_give_the_items_in_order() {
         for spread in [false, true] {
-            let out = map((0..100).collect(), spread, |k: u64| k * k);
+            let out = map(0..100u64, spread, |k: u64| k * k);
             assert_eq!(out, (0..100).map(|k| k * k).collect::<Vec<_>>());
             let seen = std::sync::Mutex::new(Vec::new());
             let run = try_for_each_init(

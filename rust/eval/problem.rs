@@ -217,7 +217,7 @@ impl Problem {
         // A Hessenberg reduction takes about as long as 60 n^3 flops of
         // the Gram kernels (measured 4 us at n = 10, 12 us at 16).
         let spread = worth_spreading(points, (60 * n * n * n * points) as f64);
-        spread::map((0..points).collect(), spread, |q| {
+        spread::map(0..points, spread, |q| {
             Hessenberg::new(&self.shape, &Frozen::at(&self.shape, theta, self.psi(q)))
         })
     }

@@ -148,7 +148,8 @@ pub(crate) fn predicted_decrease(gn: &GaussNewton, d: &[f64]) -> f64 {
     // Each column's sum in order (the columns in parallel), then their
     // weighted sum in column order.
     let spread = worth_spreading(m, (2 * m * m) as f64);
-    let columns: Vec<f64> = spread::map(gn.gram.chunks(m.max(1)).collect(), spread, |col| {
+    let columns: Vec<&[f64]> = gn.gram.chunks(m.max(1)).collect();
+    let columns = spread::map(columns, spread, |col| {
         col.iter().zip(d).map(|(h, x)| h * x).sum::<f64>()
     });
     let quad = columns.iter().zip(d).fold(0.0, |q, (c, x)| q + x * c);

@@ -202,16 +202,17 @@ impl FrozenRange {
     /// The margin at every check point.
     pub fn margins(&self, shape: &Shape, theta: &[f64]) -> Result<Vec<f64>> {
         self.check_shape(shape, theta)?;
-        let points: Vec<usize> = (0..self.len()).collect();
-        self.margins_at(shape, theta, points).into_iter().collect()
+        self.margins_at(shape, theta, (0..self.len()).collect())
     }
 
     /// The margin at each of the check points `points`, in their order (on
     /// the pool when the eigenvalues are worth it: [`margin_work`] each).
-    fn margins_at(&self, shape: &Shape, theta: &[f64], points: Vec<usize>) -> Vec<Result<f64>> {
+    fn margins_at(&self, shape: &Shape, theta: &[f64], points: Vec<usize>) -> Result<Vec<f64>> {
         let work = margin_work(shape.n) * points.len() as f64;
         let spread = worth_spreading(points.len(), work);
         spread::map(points, spread, |k| self.margin_at(shape, theta, k))
+            .into_iter()
+            .collect()
     }
 
     /// The smallest margin found and its check point: every `stride`-th
@@ -225,10 +226,7 @@ impl FrozenRange {
         if coarse.last() != Some(&last) {
             coarse.push(last);
         }
-        let values: Vec<f64> = self
-            .margins_at(shape, theta, coarse.clone())
-            .into_iter()
-            .collect::<Result<_>>()?;
+        let values = self.margins_at(shape, theta, coarse.clone())?;
         let mut best = (0..coarse.len())
             .map(|i| (coarse[i], values[i]))
             .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
