@@ -246,6 +246,23 @@ def test_the_few_points_starts_on_an_executor_are_those_made_here():
             assert a.vnls == b.vnls
 
 
+def test_a_piece_on_a_thread_runs_the_core_loops_on_that_thread():
+    """Set while the piece runs, as it was after; not for a piece run here."""
+    from lpvid import _core
+
+    def setting() -> bool:
+        before = _core._loops_here(True)
+        _core._loops_here(before)
+        return before
+
+    with ThreadPoolExecutor(1) as pool:
+        spread = Spread(pool)
+        assert spread.take(spread.submit(setting)) is True
+        assert pool.submit(setting).result() is False  # the thread's own setting back
+    here = Spread(None)
+    assert here.take(here.submit(setting)) is False
+
+
 def test_identify_on_a_dask_cluster_is_the_run_here(stage):
     distributed = pytest.importorskip("distributed")
     ds, here = stage

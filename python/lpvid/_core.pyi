@@ -36,6 +36,7 @@ __all__ = [
     "fit_memory",
     "_fail_allocation_after",
     "_kept_blocks",
+    "_loops_here",
 ]
 
 __version__: str
@@ -43,6 +44,7 @@ __version__: str
 __target_features__: str
 
 def kernel_route() -> str: ...
+def _loops_here(here: bool) -> bool: ...
 
 class SingularModelError(ArithmeticError): ...
 

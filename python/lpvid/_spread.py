@@ -11,6 +11,11 @@ the pieces were handed out, never as they finish, and the core's fits are
 the same to the last bit on any number of threads: the run is the same
 wherever the pieces ran.
 
+A piece on a thread of this process runs the core's parallel loops in
+order on its own thread (:func:`_run`): beside other pieces and the
+caller's thread, loops handed to the core's pool from each of them would
+queue there behind each other's, more threads than cores.
+
 Ctrl-C reaches the main thread only, and the core notices it there alone.
 When the wait for a piece is interrupted (or a piece fails), every piece
 still out is dropped: those not started are cancelled; those running on a
@@ -38,6 +43,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
+from lpvid import _core
 from lpvid._capture import collected
 
 __all__ = [
@@ -141,13 +147,23 @@ def _is_dask_client(obj: Any) -> bool:
 def _run(
     stop: threading.Event | None, fn: Callable[..., Any], args: tuple[Any, ...]
 ) -> tuple[Any, list[tuple[type[Warning], str]]]:
-    """Run one piece where the executor put it, with its stop flag and its warnings collected."""
+    """Run one piece where the executor put it, with its stop flag and its warnings collected.
+
+    A piece on a thread of this process (``stop`` given) runs the core's
+    loops in order on its thread (:func:`lpvid._core._loops_here`): the
+    pieces beside it and the caller's thread have the cores, and loops
+    handed to the core's pool from every one of them would wait for each
+    other's there. The same results either way.
+    """
     token = _STOP.set(stop)
+    before = None if stop is None else _core._loops_here(True)
     try:
         with collected() as caught:
             out = fn(*args)
         return out, list(caught)
     finally:
+        if before is not None:
+            _core._loops_here(before)
         _STOP.reset(token)
 
 

@@ -40,9 +40,10 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 /// 1.6x, at n = 24 2.2x. The results are the same to the last bit.
 const PARALLEL_FLOPS: f64 = 1.5e8;
 
-/// The parallelism for a kernel of `flops` floating-point operations.
+/// The parallelism for a kernel of `flops` floating-point operations (on
+/// one thread when this thread keeps its loops, [`super::spread::kept_here`]).
 pub fn par_for(flops: f64) -> Par {
-    if flops >= PARALLEL_FLOPS {
+    if flops >= PARALLEL_FLOPS && !super::spread::kept_here() {
         Par::rayon(0)
     } else {
         Par::Seq

@@ -23,19 +23,41 @@ use rayon::prelude::*;
 /// same times (medians of nine runs each).
 pub const SPREAD_FLOPS: f64 = 2e6;
 
+thread_local! {
+    /// Whether every loop this thread starts runs in order here ([`in_order_here`]).
+    static HERE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
 #[cfg(test)]
 thread_local! {
     /// A test's answer for every loop this thread starts ([`forced`]).
     static FORCED: std::cell::Cell<Option<bool>> = const { std::cell::Cell::new(None) };
 }
 
-/// Whether `items` pieces of `flops` work in all are worth the pool.
+/// Whether `items` pieces of `flops` work in all are worth the pool: never
+/// on a thread told to run its loops here ([`in_order_here`]).
 pub fn worth_spreading(items: usize, flops: f64) -> bool {
     #[cfg(test)]
     if let Some(spread) = FORCED.with(std::cell::Cell::get) {
         return spread && items > 1;
     }
-    items > 1 && flops >= SPREAD_FLOPS
+    items > 1 && flops >= SPREAD_FLOPS && !kept_here()
+}
+
+/// From now on, every loop this thread starts runs in order on it (`here`)
+/// or by its work ([`worth_spreading`]); returns the setting before. For a
+/// fit that runs beside others on threads of their own (a thread pool of
+/// the caller's, each thread one fit): handed to the pool too, their loops
+/// would wait for each other's there, more threads than cores. The results
+/// are the same to the last bit either way.
+pub fn in_order_here(here: bool) -> bool {
+    HERE.with(|c| c.replace(here))
+}
+
+/// Whether this thread runs its loops in order whatever their work
+/// ([`in_order_here`]): the dense kernels ask too.
+pub fn kept_here() -> bool {
+    HERE.with(std::cell::Cell::get)
 }
 
 /// `f` with every loop this thread starts on the pool (`spread`) or in
@@ -97,6 +119,21 @@ mod tests {
         assert!(worth_spreading(2, SPREAD_FLOPS));
         assert!(!worth_spreading(1, 1e12));
         assert!(!worth_spreading(8, SPREAD_FLOPS * 0.99));
+    }
+
+    #[test]
+    fn a_thread_told_to_keep_its_loops_runs_none_on_the_pool() {
+        let before = in_order_here(true);
+        assert!(!worth_spreading(8, SPREAD_FLOPS * 1e3));
+        assert!(in_order_here(before));
+        assert!(worth_spreading(8, SPREAD_FLOPS * 1e3));
+        // another thread's setting is its own
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                in_order_here(true);
+            });
+        });
+        assert!(worth_spreading(8, SPREAD_FLOPS * 1e3));
     }
 
     #[test]

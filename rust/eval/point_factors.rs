@@ -29,11 +29,11 @@
 //! every machine.
 
 use crate::base::dense::{cholesky_solve, factor_lower};
+use crate::base::spread::{self, worth_spreading};
 use crate::error::Result;
 use crate::eval::gram_product::{gram_product, scratch_len};
 use crate::memory::{try_vec, try_zeros};
 use faer::{Accum, Mat};
-use rayon::prelude::*;
 
 /// A pivot of the unit-diagonal `H_q` below this ends its factorisation.
 pub const RANK_TOL: f64 = 1e-12;
@@ -167,11 +167,13 @@ impl PointFactors {
         lti: usize,
         bound: usize,
     ) -> Result<Self> {
-        let points = grams
-            .par_iter()
-            .zip(jtr.par_iter())
-            .zip(psi.into_par_iter())
-            .map(|((h, g), psi)| {
+        // a pivoted factorisation of lti^3 / 3 flops a point
+        let work = grams.len() as f64 * (lti as f64).powi(3) / 3.0;
+        let items: Vec<_> = grams.iter().zip(jtr).zip(psi).collect();
+        let points = spread::map(
+            items,
+            worth_spreading(grams.len(), work),
+            |((h, g), psi)| {
                 let (l, pivots, rank) = pivoted_factor(h, lti)?;
                 // L[pivots, :] is lower triangular in the pivots' order.
                 let mut c = vec![0.0; rank];
@@ -183,8 +185,10 @@ impl PointFactors {
                     c[k] = s / l[p + k * lti];
                 }
                 Ok(PointFactor { psi, l, rank, c })
-            })
-            .collect::<Result<Vec<_>>>()?;
+            },
+        )
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?;
         Ok(PointFactors {
             lti,
             bound,
@@ -235,9 +239,15 @@ impl PointFactors {
         let offsets = self.offsets();
         let size = offsets[n];
         let pairs: Vec<(usize, usize)> = (0..n).flat_map(|q| (q..n).map(move |s| (q, s))).collect();
-        let blocks = pairs
-            .par_iter()
-            .map(|&(q, s)| {
+        // a block of rank_q x rank_s x lti multiply-adds a pair
+        let work: f64 = pairs
+            .iter()
+            .map(|&(q, s)| 2.0 * (self.points[q].rank * self.points[s].rank * lti) as f64)
+            .sum();
+        let blocks = spread::map(
+            pairs.clone(),
+            worth_spreading(pairs.len(), work),
+            |(q, s)| {
                 let (a, b) = (&self.points[q], &self.points[s]);
                 let mut w = vec![0.0; lti];
                 for (&(i, p), &c) in self.map.iter().zip(weights) {
@@ -265,8 +275,10 @@ impl PointFactors {
                     &mut scratch,
                 );
                 Ok(block)
-            })
-            .collect::<Result<Vec<_>>>()?;
+            },
+        )
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?;
         let mut k = try_zeros(size, size, "the reduced Gram matrix")?;
         for (&(q, s), block) in pairs.iter().zip(&blocks) {
             for jj in 0..block.ncols() {

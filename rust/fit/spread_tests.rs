@@ -1,13 +1,14 @@
 //! Every loop that runs on the pool or in order by its work
 //! ([`crate::base::spread`]) gives the same bits both ways: the evaluation
 //! of a problem (residual, V_NLS, gradient, `J^T J`), the frequency
-//! responses with their sides, the stability margins and the pieces of a
-//! Levenberg-Marquardt step.
+//! responses with their sides, the stability margins, the pieces of a
+//! Levenberg-Marquardt step and the points' factors of its reduced system.
 
 use crate::base::data::FrfData;
 use crate::base::layout::{FreeSet, Shape};
 use crate::base::spread::forced;
 use crate::eval::model::ModelAt;
+use crate::eval::point_factors::tests::pieces;
 use crate::eval::problem::Problem;
 use crate::eval::response::frequency_response;
 use crate::fit::lm::{lm_step, marquardt_diagonal, predicted_decrease};
@@ -62,6 +63,18 @@ fn numbers(spread: bool) -> Vec<Vec<f64>> {
             let margins = range.margins(&shape, &theta).unwrap();
             let (at, worst) = range.worst(&shape, &theta, -1.0).unwrap();
             let parts = |v: &[C64]| v.iter().flat_map(|c| [c.re, c.im]).collect::<Vec<_>>();
+            // the points' factors (5 points, 40 frozen parameters of rank 12) and the
+            // reduced system's Gram matrix
+            let free: Vec<usize> = (0..120).filter(|k| k % 7 != 3).collect();
+            let factored = pieces(5, 40, 12, 3, &free);
+            let factors = factored.factors.expect("factors");
+            let weights: Vec<f64> = (0..free.len()).map(|k| 1.0 + k as f64 / 9.0).collect();
+            let reduced = factors.weighted_gram(&weights).unwrap();
+            let reduced: Vec<f64> = (0..reduced.ncols())
+                .flat_map(|j| (0..reduced.nrows()).map(move |i| (i, j)))
+                .map(|(i, j)| reduced[(i, j)])
+                .collect();
+            let ranks: Vec<f64> = factors.ranks().iter().map(|&r| r as f64).collect();
             vec![
                 vec![
                     gn.vnls,
@@ -76,6 +89,9 @@ fn numbers(spread: bool) -> Vec<Vec<f64>> {
                 parts(&response),
                 step,
                 margins,
+                factors.times(&vec![0.5; factors.rank()]),
+                reduced,
+                ranks,
             ]
         })
     })

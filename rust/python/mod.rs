@@ -42,6 +42,14 @@ fn kernel_route() -> &'static str {
     crate::base::route::Route::current().name()
 }
 
+/// From now on, run every loop of the core started from this thread in
+/// order on it (`here`), or on the thread pool when its work is worth it;
+/// returns the setting before ([`crate::base::spread::in_order_here`]).
+#[pyfunction]
+fn _loops_here(here: bool) -> bool {
+    crate::base::spread::in_order_here(here)
+}
+
 /// The compiled core of lpvid (private: use the `lpvid` package).
 #[pymodule]
 #[pyo3(name = "_core")]
@@ -60,6 +68,7 @@ fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.py().get_type::<SingularModelError>(),
     )?;
     m.add_function(wrap_pyfunction!(kernel_route, m)?)?;
+    m.add_function(wrap_pyfunction!(_loops_here, m)?)?;
     m.add_class::<model_py::PyModelView>()?;
     problem_py::register(m)?;
     fit_py::register(m)?;
