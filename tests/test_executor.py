@@ -29,13 +29,18 @@ class LastFirst(Executor):
     out: a run that took them as they finish would see them reversed.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, log: list[str] | None = None) -> None:
+        self.log = log  # where to note every piece handed out, by its function's name
         self.queue: list[tuple[Future[Any], Any, tuple[Any, ...]]] = []
         self.ran: list[Any] = []
+        self.handed: list[tuple[str, Future[Any]]] = []
 
     def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Future[Any]:
         future = _Lazy(self)
         self.queue.append((future, fn, args))
+        self.handed.append((args[1].__name__, future))
+        if self.log is not None:
+            self.log.append(f"handed {args[1].__name__}")
         return future
 
     def run_all(self) -> None:
@@ -231,7 +236,7 @@ def test_the_few_points_starts_on_an_executor_are_those_made_here():
     problem = lpvid.Problem(data, 10, true.basis, fixed=fixed)
     local = lpvid.identify_lti(data, 10, strictly_proper=True)
     makers = {
-        "_block_candidate": lambda ex: block_candidates(
+        "_block_candidates_at": lambda ex: block_candidates(
             data, true.basis, fixed, local, executor=ex
         ),
         "_global_all": lambda ex: global_everywhere(problem, local, ex),
@@ -244,6 +249,50 @@ def test_the_few_points_starts_on_an_executor_are_those_made_here():
         for a, b in zip(here, there, strict=True):
             np.testing.assert_array_equal(a.model.theta, b.model.theta)
             assert a.vnls == b.vnls
+
+
+def _few(points: list[float], executor: Executor | None, said: list | None = None) -> Any:
+    """one_group_lpv(0) at ``points``, 60 lines, without validation data."""
+    true = lpvid.testing.one_group_lpv(0)
+    lines = np.linspace(2, 100, 60)
+    data = lpvid.testing.noisy_data(true, points, lines, np.random.default_rng(1), 0.01)
+    say = None if said is None else said.append
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        return lpvid.identify(
+            data, 10, true.basis, fixed={"D": True}, executor=executor, progress=say
+        )
+
+
+def test_the_blocks_route_handed_out_before_the_main_path_is_the_run_here(monkeypatch):
+    """Taken when the points leave the structure open (three points), dropped when they
+    determine it (five): the same run as one piece after the other either way."""
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 1)  # the runs here: no threads of its own
+    for points, taken in (([0.0, 0.4, 1.0], True), ([0.0, 0.25, 0.5, 0.75, 1.0], False)):
+        said: list[str] = []
+        here, pool = _few(points, None), LastFirst(said)
+        there = _few(points, pool, said)
+        assert_same_run(here, there)
+        assert any(c.name.startswith("blocks:") for c in here.candidates) is taken
+        ahead = [f for name, f in pool.handed if name == "_block_candidates_at"]
+        assert ahead and all(f.cancelled() is not taken for f in ahead)
+        first_fit = next(k for k, m in enumerate(said) if "gamma =" in m)
+        assert said.index("handed _block_candidates_at") < first_fit
+
+
+def test_the_blocks_route_handed_out_ahead_is_dropped_on_ctrl_c(monkeypatch):
+    """Ctrl-C in the main path: the piece handed out before it is cancelled, nothing runs on."""
+    import lpvid.pipeline.run as run
+
+    def interrupted(*args: Any, **kwargs: Any) -> Any:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run, "follow", interrupted)
+    pool = LastFirst()
+    with pytest.raises(KeyboardInterrupt):
+        _few([0.0, 0.4, 1.0], pool)
+    ahead = [f for name, f in pool.handed if name == "_block_candidates_at"]
+    assert len(ahead) == 1 and ahead[0].cancelled()
 
 
 def test_a_piece_on_a_thread_runs_the_core_loops_on_that_thread():

@@ -9,7 +9,8 @@ a small run hands them to threads of its own (:func:`own_threads`) and a
 large one runs them here, one after the other. Results are taken in the order
 the pieces were handed out, never as they finish, and the core's fits are
 the same to the last bit on any number of threads: the run is the same
-wherever the pieces ran.
+wherever the pieces ran. Work may be handed out before the caller knows
+it will need it (:meth:`Spread.hand_out`) and dropped when it does not.
 
 A piece on a thread of this process runs the core's parallel loops in
 order on its own thread (:func:`_run`): beside other pieces and the
@@ -232,6 +233,31 @@ class Spread:
         if running:
             wait(running)
 
+    def hand_out(self, fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]]) -> list[Piece]:
+        """Hand out ``fn(*args)`` for every call now; :meth:`take_all` takes them later.
+
+        Without an executor nothing runs until taken. Work handed out ahead of
+        the need for it (before the caller knows whether it will take it)
+        is dropped with :meth:`drop` when not needed.
+        """
+        try:
+            return [self.submit(fn, *args) for args in calls]
+        except BaseException:
+            self.drop()
+            raise
+
+    def take_all(self, pieces: Sequence[Piece]) -> list[Any]:
+        """The pieces' results, in their order.
+
+        On a failure (or Ctrl-C) every piece still out is dropped
+        (:meth:`drop`) and the first failure in that order raised.
+        """
+        try:
+            return [self.take(p) for p in pieces]
+        except BaseException:
+            self.drop()
+            raise
+
     def map(self, fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]]) -> list[Any]:
         """``[fn(*args) for args in calls]``, the calls spread over the executor.
 
@@ -241,9 +267,4 @@ class Spread:
         """
         if self.executor is None or len(calls) < 2:
             return [fn(*args) for args in calls]
-        try:
-            pieces = [self.submit(fn, *args) for args in calls]
-            return [self.take(p) for p in pieces]
-        except BaseException:
-            self.drop()
-            raise
+        return self.take_all(self.hand_out(fn, calls))

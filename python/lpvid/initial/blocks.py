@@ -30,12 +30,13 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from concurrent.futures import Executor
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid._spread import Spread
+from lpvid._spread import Piece, Spread
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
@@ -50,7 +51,15 @@ from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import fixed_mask, strictly_proper
 from lpvid.model.lpv import LpvModel
 
-__all__ = ["block_candidates", "block_form", "block_start", "block_structure", "start_points"]
+__all__ = [
+    "BlockPieces",
+    "block_candidates",
+    "block_form",
+    "block_start",
+    "block_structure",
+    "hand_out_blocks",
+    "start_points",
+]
 
 #: Largest condition number of the modal transformation for which a local
 #: model is put in block form (beyond it, poles too close to tell apart).
@@ -206,6 +215,54 @@ def start_points(data: FrfData, local: LocalModels, fixed: Any) -> list[int]:
     return out
 
 
+@dataclass
+class BlockPieces:
+    """The blocks route's fits handed out (:func:`hand_out_blocks`): to take, or to drop."""
+
+    spread: Spread
+    pieces: list[Piece]
+
+    def take(self) -> list[Candidate]:
+        """The candidates, in the order of their start points (waiting for them)."""
+        return [c for found in self.spread.take_all(self.pieces) for c in found]
+
+    def drop(self) -> None:
+        """Drop the fits not taken (:meth:`lpvid._spread.Spread.drop`)."""
+        self.spread.drop()
+
+
+def hand_out_blocks(
+    data: FrfData,
+    basis: Basis,
+    fixed: Any,
+    local: LocalModels,
+    *,
+    validation: FrfData | None = None,
+    points: Sequence[int] | None = None,
+    max_iter: int = 100,
+    ftol: float = START_FTOL,
+    executor: Executor | None = None,
+    pieces: int | None = None,
+) -> BlockPieces:
+    """The fits of :func:`block_candidates` handed out to ``executor`` now, taken later.
+
+    ``pieces``: into how many pieces the start points are cut (neighbours
+    in their order, fitted one after the other in a piece; None: one piece
+    per point). Without an executor each piece runs when taken.
+    :func:`lpvid.identify` hands them out before its main path, whose
+    outcome decides whether it needs them
+    (:func:`lpvid.pipeline.fewpoints.open_routes`).
+    """
+    where = [int(q) for q in (start_points(data, local, fixed) if points is None else points)]
+    cut = len(where) if pieces is None else max(1, min(pieces, len(where)))
+    groups = [where[k * len(where) // cut : (k + 1) * len(where) // cut] for k in range(cut)]
+    how = (basis, fixed, local, validation, max_iter, ftol)
+    spread = Spread(executor)
+    return BlockPieces(
+        spread, spread.hand_out(_block_candidates_at, [(data, g, *how) for g in groups])
+    )
+
+
 def block_candidates(
     data: FrfData,
     basis: Basis,
@@ -225,13 +282,29 @@ def block_candidates(
     :func:`lpvid.identify`; default here, one after the other), the
     candidates the same either way.
     """
-    where = start_points(data, local, fixed) if points is None else points
-    how = (basis, fixed, local, validation, max_iter, ftol)
-    found = Spread(executor).map(_block_candidate, [(data, int(q), *how) for q in where])
-    return [c for c in found if c is not None]
+    return hand_out_blocks(
+        data,
+        basis,
+        fixed,
+        local,
+        validation=validation,
+        points=points,
+        max_iter=max_iter,
+        ftol=ftol,
+        executor=executor,
+    ).take()
 
 
 @single_blas
+def _block_candidates_at(data: FrfData, points: Sequence[int], *how: Any) -> list[Candidate]:
+    """The blocks route's candidates from ``points``, one after the other.
+
+    ``how``: the rest of :func:`_block_candidate`'s arguments.
+    """
+    found = (_block_candidate(data, q, *how) for q in points)
+    return [c for c in found if c is not None]
+
+
 def _block_candidate(
     data: FrfData,
     point: int,

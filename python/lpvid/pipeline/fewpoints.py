@@ -63,7 +63,7 @@ from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import between_points
 from lpvid.fit.judge import noise_slack
-from lpvid.initial.blocks import block_candidates
+from lpvid.initial.blocks import BlockPieces, hand_out_blocks
 from lpvid.initial.candidates import Candidate, fitted_candidate
 from lpvid.initial.globalstart import constant_start, free_groups
 from lpvid.initial.localmodels import LocalModels
@@ -214,6 +214,7 @@ def open_routes(
     follow_start: Callable[[Candidate], Route],
     say: Callable[[str], Any],
     executor: Executor | None = None,
+    ahead: BlockPieces | None = None,
 ) -> tuple[list[Route], list[Candidate], SilentCount | None]:
     """The routes to choose among, the extra candidates, and the count that decided.
 
@@ -225,7 +226,28 @@ def open_routes(
     misfit: the blocks route from every point and the global start
     (``"global:all"``) from every point. Of the extra starts, those within
     the noise of the committee (module notes) are followed through the path.
+
+    ``ahead``: the blocks route's fits from its usual start points, handed
+    out before ``main`` was followed (:func:`lpvid.initial.blocks.hand_out_blocks`); taken when
+    the points leave the structure open, else dropped.
     """
+    try:
+        return _open_routes(problem, main, local, follow_start, say, executor, ahead)
+    finally:
+        if ahead is not None:
+            ahead.drop()  # nothing left when taken
+
+
+def _open_routes(
+    problem: Any,
+    main: Route,
+    local: LocalModels,
+    follow_start: Callable[[Candidate], Route],
+    say: Callable[[str], Any],
+    executor: Executor | None,
+    ahead: BlockPieces | None,
+) -> tuple[list[Route], list[Candidate], SilentCount | None]:
+    """:func:`open_routes` (its ``ahead`` dropped by the caller)."""
     data, validation = problem.data, problem.validation
     threshold = problem.settings.path.l21.threshold
     e = main.entry
@@ -244,17 +266,22 @@ def open_routes(
         assert count is not None
         say(f"the points leave the chosen structure open: {count.describe()}; the blocks route too")
         points = None
-    more = block_candidates(
-        data,
-        problem.basis,
-        problem.fixed,
-        local,
-        validation=validation,
-        points=points,
-        max_iter=starts.max_iter,
-        ftol=starts.ftol,
-        executor=executor,
-    )
+    if ahead is not None and points is not None:
+        ahead.drop()  # handed out from the usual start points; a misfit starts from every point
+        ahead = None
+    if ahead is None:
+        ahead = hand_out_blocks(
+            data,
+            problem.basis,
+            problem.fixed,
+            local,
+            validation=validation,
+            points=points,
+            max_iter=starts.max_iter,
+            ftol=starts.ftol,
+            executor=executor,
+        )
+    more = ahead.take()
     if wrong:
         more += global_everywhere(problem, local, executor)
     floor = data.n_residuals

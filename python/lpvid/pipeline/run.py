@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from lpvid._spread import check_executor, own_threads
+from lpvid._spread import SMALL_RUN_BYTES, check_executor, cores, own_threads
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
@@ -25,9 +25,11 @@ from lpvid.fit.fits import fit_nls, raise_if_interrupted, warn_if_unconverged
 from lpvid.fit.memory import check_memory, pipeline_memory
 from lpvid.fit.results import PathResult
 from lpvid.fit.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
+from lpvid.initial.blocks import BlockPieces, hand_out_blocks
 from lpvid.initial.candidates import candidates_of
 from lpvid.initial.choice import choose
 from lpvid.initial.local import local_models
+from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.fewpoints import choose_route, open_between, open_routes
@@ -176,11 +178,15 @@ def identify(
         Where the independent fits run, each one task: the refinement of
         every subspace start of the local models, the runners of every
         round of the race of the starts, the blocks route's and (after a
-        misfit) the global starts when the points leave the structure open,
-        and (on an executor of other processes, such as a Dask
-        cluster) a guarded path's pinned fit beside the warm one at every
-        gamma, dropped when not needed (on threads here it would take the
-        warm fit's cores). The results are taken in a fixed order, never as
+        misfit) the global starts when the points leave the structure open
+        (for a small run without validation data or time records, the
+        blocks route's starts are handed out before the main path, beside
+        it, and dropped when its structure turns out determined), and (on
+        an executor of other processes, such as a Dask cluster) a guarded
+        path's pinned fit beside the warm one at every gamma, dropped when
+        not needed (on threads here it would take the warm fit's cores).
+        A piece on a thread of this process runs the core's loops on its
+        own thread (:mod:`lpvid._spread`). The results are taken in a fixed order, never as
         they finish, so the run is the same to the last bit: the same
         local models, the same starts kept and dropped, the same path and
         model. Default: for a small run (its peak memory estimate at most
@@ -252,13 +258,25 @@ def identify(
     need, sizes = pipeline_memory(p.data, p.order, p.basis, p.time_data, p.settings.refit)
     check_memory(need, "identify", sizes)  # before any work
     with own_threads(check_executor(executor), need) as spread_on:
-        return _run(problem, progress=progress, executor=spread_on, t0=t0)
+        small = need <= SMALL_RUN_BYTES
+        return _run(problem, progress=progress, executor=spread_on, t0=t0, small=small)
 
 
 def _run(
-    problem: Problem, *, progress: Progress | None, executor: Executor | None, t0: float
+    problem: Problem,
+    *,
+    progress: Progress | None,
+    executor: Executor | None,
+    t0: float,
+    small: bool = False,
 ) -> IdentifyResult:
-    """The pipeline of :func:`identify` on a checked problem (nothing it holds is checked again)."""
+    """The pipeline of :func:`identify` on a checked problem (nothing it holds is checked again).
+
+    ``small``: a run whose fits hardly spread over the cores inside the core
+    (:data:`lpvid._spread.SMALL_RUN_BYTES`): the blocks route's fits are
+    handed out to ``executor`` while the main path runs
+    (:func:`_blocks_ahead`).
+    """
     data, n, basis, fixed = problem.data, problem.order, problem.basis, problem.fixed
     validation, time_cost, p_range = problem.validation, problem.time_data, problem.p_range
     settings, starts = problem.settings, problem.settings.starts
@@ -312,7 +330,13 @@ def _run(
     along = Along(
         validation, tol, l21, p_range, stable, time_cost, lambda m: _say(progress, m), executor
     )
-    main = follow(start.name, nls, gs, data, fixed, along)
+    ahead = _blocks_ahead(problem, local, executor) if small else None
+    try:
+        main = follow(start.name, nls, gs, data, fixed, along)
+    except BaseException:
+        if ahead is not None:
+            ahead.drop()
+        raise
     timings["path_s"] = time.perf_counter() - t
     t = time.perf_counter()
     routes, more, counted = open_routes(
@@ -322,6 +346,7 @@ def _run(
         lambda c: follow(c.name, c.fit, gs, data, c.structure, along),
         lambda message: _say(progress, message),
         executor,
+        ahead,
     )
     route_index, chosen, reason, members = choose_route(
         routes, data, validation, tol, local, l21.threshold, counted
@@ -403,4 +428,31 @@ def _run(
         covariance=done.covariance,
         stability=done.stability,
         between=between,
+    )
+
+
+def _blocks_ahead(
+    problem: Any, local: LocalModels, executor: Executor | None
+) -> BlockPieces | None:
+    """The blocks route's fits handed out before the main path, when it may need them.
+
+    Without validation data or time records, :func:`lpvid.pipeline.fewpoints.open_routes`
+    takes them
+    when the points leave the main path's structure open; the executor's
+    threads fit them while the main path runs (a small run's fits take one
+    core each). The same fits either way: only when they run changes.
+    None without an executor, or when only a misfit could open the routes.
+    """
+    if executor is None or problem.validation is not None or problem.time_data is not None:
+        return None
+    starts = problem.settings.starts
+    return hand_out_blocks(
+        problem.data,
+        problem.basis,
+        problem.fixed,
+        local,
+        max_iter=starts.max_iter,
+        ftol=starts.ftol,
+        executor=executor,
+        pieces=max(1, cores() - 1),
     )
