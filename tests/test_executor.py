@@ -226,7 +226,7 @@ def test_the_local_models_subspace_starts_are_made_in_the_calling_thread(monkeyp
 
 def test_the_few_points_starts_on_an_executor_are_those_made_here():
     """The blocks route's starts and the global start from every point, handed out last first."""
-    from lpvid.initial.blocks import block_candidates
+    from lpvid.initial.blocks import hand_out_blocks
     from lpvid.pipeline.fewpoints import global_everywhere
 
     true, fixed = lpvid.testing.one_group_lpv(0), {"D": True}
@@ -236,9 +236,9 @@ def test_the_few_points_starts_on_an_executor_are_those_made_here():
     problem = lpvid.Problem(data, 10, true.basis, fixed=fixed)
     local = lpvid.identify_lti(data, 10, strictly_proper=True)
     makers = {
-        "_block_candidates_at": lambda ex: block_candidates(
+        "_block_candidates_at": lambda ex: hand_out_blocks(
             data, true.basis, fixed, local, executor=ex
-        ),
+        ).take(),
         "_global_all": lambda ex: global_everywhere(problem, local, ex),
     }
     for name, make in makers.items():

@@ -237,11 +237,11 @@ def test_routes_open_only_when_the_points_leave_the_choice_open(points, opened):
 
 
 def test_the_blocks_route_fits_three_points_and_is_right_between_them():
-    from lpvid.initial.blocks import block_candidates
+    from lpvid.initial.blocks import hand_out_blocks
 
     data = _data([0.02, 0.45, 1.0], seed=5)
     local = lpvid.identify_lti(data, 10, strictly_proper=True)
-    cands = block_candidates(data, TRUE.basis, FIXED, local)
+    cands = hand_out_blocks(data, TRUE.basis, FIXED, local).take()
     assert cands and all(c.name.startswith("blocks:") for c in cands)
     assert all(c.structure is not None and c.structure.shape == TRUE.theta.shape for c in cands)
     best = min(cands, key=lambda c: c.vnls)

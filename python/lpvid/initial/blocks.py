@@ -53,7 +53,6 @@ from lpvid.model.lpv import LpvModel
 
 __all__ = [
     "BlockPieces",
-    "block_candidates",
     "block_form",
     "block_start",
     "block_structure",
@@ -244,13 +243,16 @@ def hand_out_blocks(
     executor: Executor | None = None,
     pieces: int | None = None,
 ) -> BlockPieces:
-    """The fits of :func:`block_candidates` handed out to ``executor`` now, taken later.
+    """The blocks route's candidates, one per start point (module notes), handed out now.
 
-    ``pieces``: into how many pieces the start points are cut (neighbours
-    in their order, fitted one after the other in a piece; None: one piece
-    per point). Without an executor each piece runs when taken.
+    A point whose local model cannot be put in block form gives no
+    candidate. ``pieces``: into how many pieces the start points are cut
+    (neighbours in their order, fitted one after the other in a piece;
+    None: one piece per point), side by side on ``executor`` (see
+    :func:`lpvid.identify`; without one each piece runs when taken), the
+    candidates the same either way. ``.take()`` waits for them;
     :func:`lpvid.identify` hands them out before its main path, whose
-    outcome decides whether it needs them
+    outcome decides whether it takes them or drops them
     (:func:`lpvid.pipeline.fewpoints.open_routes`).
     """
     where = [int(q) for q in (start_points(data, local, fixed) if points is None else points)]
@@ -261,38 +263,6 @@ def hand_out_blocks(
     return BlockPieces(
         spread, spread.hand_out(_block_candidates_at, [(data, g, *how) for g in groups])
     )
-
-
-def block_candidates(
-    data: FrfData,
-    basis: Basis,
-    fixed: Any,
-    local: LocalModels,
-    *,
-    validation: FrfData | None = None,
-    points: Sequence[int] | None = None,
-    max_iter: int = 100,
-    ftol: float = START_FTOL,
-    executor: Executor | None = None,
-) -> list[Candidate]:
-    """The blocks route's candidates, one per start point (module notes).
-
-    A point whose local model cannot be put in block form gives no candidate.
-    The start points are fitted side by side on ``executor`` (see
-    :func:`lpvid.identify`; default here, one after the other), the
-    candidates the same either way.
-    """
-    return hand_out_blocks(
-        data,
-        basis,
-        fixed,
-        local,
-        validation=validation,
-        points=points,
-        max_iter=max_iter,
-        ftol=ftol,
-        executor=executor,
-    ).take()
 
 
 @single_blas

@@ -228,71 +228,60 @@ def open_routes(
     the noise of the committee (module notes) are followed through the path.
 
     ``ahead``: the blocks route's fits from its usual start points, handed
-    out before ``main`` was followed (:func:`lpvid.initial.blocks.hand_out_blocks`); taken when
-    the points leave the structure open, else dropped.
+    out before ``main`` was followed
+    (:func:`lpvid.initial.blocks.hand_out_blocks`); taken when the points
+    leave the structure open, else dropped.
     """
     try:
-        return _open_routes(problem, main, local, follow_start, say, executor, ahead)
+        data, validation = problem.data, problem.validation
+        threshold = problem.settings.path.l21.threshold
+        e = main.entry
+        wrong = misfit(e.vnls, e.noise_floor, local, e.validation_vnls, e.validation_floor)
+        # With validation data they judge what lies between the points: only a misfit opens routes.
+        if problem.time_data is not None or (not wrong and validation is not None):
+            return [main], [], None
+        count = None if wrong else count_silent(e.model, data, main.fixed, threshold)[0]
+        if not wrong and (count is None or count.determined):
+            return [main], [], count
+        starts = problem.settings.starts
+        if wrong:
+            say(f"misfit: {wrong}; the blocks route and global starts from every point")
+            points: Sequence[int] | None = range(data.n_points)
+        else:
+            assert count is not None
+            opened = f"the points leave the chosen structure open: {count.describe()}"
+            say(f"{opened}; the blocks route too")
+            points = None
+        if ahead is not None and points is not None:
+            ahead.drop()  # handed out from the usual start points; a misfit starts from every point
+            ahead = None
+        if ahead is None:
+            ahead = hand_out_blocks(
+                data,
+                problem.basis,
+                problem.fixed,
+                local,
+                validation=validation,
+                points=points,
+                max_iter=starts.max_iter,
+                ftol=starts.ftol,
+                executor=executor,
+            )
+        more = ahead.take()
+        if wrong:
+            more += global_everywhere(problem, local, executor)
+        floor = data.n_residuals
+        best = min([e.vnls for e in main.entries] + [c.vnls for c in more])
+        limit = max(best, floor) + noise_slack(floor)
+        routes = [main]
+        for c in more:
+            say(f"  {c.name}: V_NLS {c.vnls:.5g}" + ("" if c.stable else ", unstable"))
+            if c.vnls <= limit or (wrong and c.vnls < e.vnls):
+                routes.append(follow_start(c))
+        return routes, more, count
     finally:
         if ahead is not None:
             ahead.drop()  # nothing left when taken
-
-
-def _open_routes(
-    problem: Any,
-    main: Route,
-    local: LocalModels,
-    follow_start: Callable[[Candidate], Route],
-    say: Callable[[str], Any],
-    executor: Executor | None,
-    ahead: BlockPieces | None,
-) -> tuple[list[Route], list[Candidate], SilentCount | None]:
-    """:func:`open_routes` (its ``ahead`` dropped by the caller)."""
-    data, validation = problem.data, problem.validation
-    threshold = problem.settings.path.l21.threshold
-    e = main.entry
-    wrong = misfit(e.vnls, e.noise_floor, local, e.validation_vnls, e.validation_floor)
-    # With validation data they judge what lies between the points: only a misfit opens routes.
-    if problem.time_data is not None or (not wrong and validation is not None):
-        return [main], [], None
-    count = None if wrong else count_silent(e.model, data, main.fixed, threshold)[0]
-    if not wrong and (count is None or count.determined):
-        return [main], [], count
-    starts = problem.settings.starts
-    if wrong:
-        say(f"misfit: {wrong}; the blocks route and global starts from every point")
-        points: Sequence[int] | None = range(data.n_points)
-    else:
-        assert count is not None
-        say(f"the points leave the chosen structure open: {count.describe()}; the blocks route too")
-        points = None
-    if ahead is not None and points is not None:
-        ahead.drop()  # handed out from the usual start points; a misfit starts from every point
-        ahead = None
-    if ahead is None:
-        ahead = hand_out_blocks(
-            data,
-            problem.basis,
-            problem.fixed,
-            local,
-            validation=validation,
-            points=points,
-            max_iter=starts.max_iter,
-            ftol=starts.ftol,
-            executor=executor,
-        )
-    more = ahead.take()
-    if wrong:
-        more += global_everywhere(problem, local, executor)
-    floor = data.n_residuals
-    best = min([e.vnls for e in main.entries] + [c.vnls for c in more])
-    limit = max(best, floor) + noise_slack(floor)
-    routes = [main]
-    for c in more:
-        say(f"  {c.name}: V_NLS {c.vnls:.5g}" + ("" if c.stable else ", unstable"))
-        if c.vnls <= limit or (wrong and c.vnls < e.vnls):
-            routes.append(follow_start(c))
-    return routes, more, count
 
 
 def global_everywhere(

@@ -186,8 +186,9 @@ def identify(
         path's pinned fit beside the warm one at every gamma, dropped when
         not needed (on threads here it would take the warm fit's cores).
         A piece on a thread of this process runs the core's loops on its
-        own thread (:mod:`lpvid._spread`). The results are taken in a fixed order, never as
-        they finish, so the run is the same to the last bit: the same
+        own thread (:mod:`lpvid._spread`). The results are taken in a
+        fixed order, never as they finish, so the run is the same to the
+        last bit: the same
         local models, the same starts kept and dropped, the same path and
         model. Default: for a small run (its peak memory estimate at most
         256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`) called from the
