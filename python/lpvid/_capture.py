@@ -57,6 +57,9 @@ def _route(message: Any, category: Any, filename: Any, lineno: Any, *rest: Any) 
 def collected() -> Iterator[list[tuple[type[Warning], str]]]:
     """Collect the warnings raised in this thread as ``(category, message)`` pairs.
 
+    Inside another collection of the same thread, this one takes the
+    warnings until it ends, then the other again.
+
     While any thread collects, warnings of every thread are shown whatever
     the filters (an ``"always"`` filter is in front); those of threads that do
     not collect are passed to the ``showwarning`` in place before.
@@ -71,11 +74,12 @@ def collected() -> Iterator[list[tuple[type[Warning], str]]]:
             warnings.filters.insert(0, _state["filter"])
             _filters_changed()
         _state["count"] += 1
+    outer = getattr(_local, "sink", None)  # a collection this one is inside
     _local.sink = sink
     try:
         yield sink
     finally:
-        _local.sink = None
+        _local.sink = outer
         with _lock:
             _state["count"] -= 1
             if _state["count"] == 0:

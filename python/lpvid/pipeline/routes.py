@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from lpvid._capture import collected
 from lpvid.data.frf import FrfData
 from lpvid.fit.judge import noise_slack, tied
 from lpvid.fit.results import FitResult, L21Result
@@ -47,9 +48,9 @@ class Route:
     fixed : object
         What the route holds fixed: the problem's ``fixed``, or the start's
         structure mask (:attr:`lpvid.initial.Candidate.structure`).
-    warned : list of warnings.WarningMessage
-        What its fits warned (held back: only the route returned says it,
-        :meth:`say_warnings`).
+    warned : list of (type, str)
+        What its fits warned, category and message (held back: only the
+        route returned says it, :meth:`say_warnings`).
     """
 
     name: str
@@ -59,12 +60,12 @@ class Route:
     chosen: int
     reason: str
     fixed: Any
-    warned: list[warnings.WarningMessage] = field(default_factory=list)
+    warned: list[tuple[type[Warning], str]] = field(default_factory=list)
 
     def say_warnings(self) -> None:
         """Warn what the route's fits warned."""
-        for w in self.warned:
-            warnings.warn(w.message, w.category, stacklevel=4)
+        for category, message in self.warned:
+            warnings.warn(message, category, stacklevel=4)
 
     @property
     def entry(self) -> PathEntry:
@@ -77,10 +78,11 @@ def follow(
 ) -> Route:
     """The path from the refined start ``nls`` and the choice on it.
 
-    Its fits' warnings are held in :attr:`Route.warned`, for the route returned to say.
+    Its fits' warnings are held in :attr:`Route.warned`, for the route returned to say
+    (collected in this thread, :func:`lpvid._capture.collected`: the pieces of
+    the run on other threads collect theirs at the same time).
     """
-    with warnings.catch_warnings(record=True) as warned:
-        warnings.simplefilter("always")
+    with collected() as warned:
         if along.stable:
             threshold = along.settings.threshold
             nls = stable_fit(nls, data, fixed, threshold, along.p_range, along.time_cost)
