@@ -188,12 +188,11 @@ def identify(
         A piece on a thread of this process runs the core's loops on its
         own thread (:mod:`lpvid._spread`). The results are taken in a
         fixed order, never as they finish, so the run is the same to the
-        last bit: the same
-        local models, the same starts kept and dropped, the same path and
-        model. Default: for a small run (its peak memory estimate at most
-        256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`) called from the
-        main thread, threads of this process, one per core it may run on
-        (none on one core); else here, one after the other. A small
+        last bit: the same local models, the same starts kept and dropped,
+        the same path and model. Default: for a small run (its peak
+        memory estimate at most 256 MiB, :data:`lpvid._spread.SMALL_RUN_BYTES`)
+        called from the main thread, threads of this process, one per core
+        it may run on (none on one core); else here, one after the other. A small
         model's fits hardly spread over the cores inside the core, and two
         side by side take about half the time: the synthetic n = 10 SISO
         system at six points (``benches/bench_small.py``) 1.44 -> 1.24 s,
@@ -437,12 +436,12 @@ def _blocks_ahead(
 ) -> BlockPieces | None:
     """The blocks route's fits handed out before the main path, when it may need them.
 
-    Without validation data or time records, :func:`lpvid.pipeline.fewpoints.open_routes`
-    takes them
-    when the points leave the main path's structure open; the executor's
-    threads fit them while the main path runs (a small run's fits take one
-    core each). The same fits either way: only when they run changes.
-    None without an executor, or when only a misfit could open the routes.
+    Without validation data or time records,
+    :func:`lpvid.pipeline.fewpoints.open_routes` takes them when the points
+    leave the main path's structure open; the executor's threads fit them
+    while the main path runs (a small run's fits take one core each). The
+    same fits either way: only when they run changes. None without an
+    executor, or when only a misfit could open the routes.
     """
     if executor is None or problem.validation is not None or problem.time_data is not None:
         return None
