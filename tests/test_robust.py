@@ -218,6 +218,31 @@ def test_best_determined_point_has_the_most_certain_poles(hard):
     assert root == int(np.argmin(worst)) == 0
 
 
+def test_best_determined_computes_each_points_poles_once_for_its_data(hard, monkeypatch):
+    """Asked again (identify asks twice), the same answer without the pole uncertainties."""
+    import lpvid.initial.continuation as continuation
+
+    data, _ = hard
+    local = lpvid.identify_lti(data, 6)
+    calls = []
+    real = continuation.pole_uncertainty
+
+    def counted(model, point_data, fixed=None):
+        calls.append(fixed)
+        return real(model, point_data, fixed)
+
+    monkeypatch.setattr(continuation, "pole_uncertainty", counted)
+    first = initial.best_determined(local, data)
+    asked = len(calls)
+    assert asked >= 2
+    assert initial.best_determined(local, data) == first and len(calls) == asked
+    # other fixed parameters, or other data (a copy): computed anew
+    initial.best_determined(local, data, fixed={"D": True})
+    assert len(calls) == 2 * asked and calls[-1] == {"D": True}
+    copy = data.subset(list(range(data.n_points)))
+    assert initial.best_determined(local, copy) == first and len(calls) == 3 * asked
+
+
 # ------------------------------------------------------------------ identify_lti(continuation=)
 def test_identify_lti_continuation_keeps_the_local_models_on_one_branch(hard):
     data, _ = hard

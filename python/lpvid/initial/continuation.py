@@ -58,13 +58,31 @@ def best_determined(
     ok = [q for q in range(N) if q not in diag.inconsistent and not local_models.unstable[q]]
     ok = ok or list(range(N))
     ok = [q for q in ok if rel[q] <= np.min(rel[ok]) + tol[q]] or ok
-    spread = {}
-    for q in ok:
-        try:
-            spread[q] = float(np.max(pole_uncertainty(local_models[q], data.subset([q]), fixed)))
-        except (np.linalg.LinAlgError, ValueError):
-            spread[q] = np.inf
+    spread = {q: _least_certain(local_models, data, q, fixed) for q in ok}
     return min(ok, key=lambda q: (spread[q], rel[q]))
+
+
+def _least_certain(local_models: LocalModels, data: FrfData, q: int, fixed: Any) -> float:
+    """The largest pole uncertainty of local model ``q`` (inf when it cannot be had).
+
+    Kept on ``local_models`` for ``data`` and a ``fixed`` given as None or a
+    dict of flags: :func:`lpvid.identify` asks for it for the continuation
+    and again for the blocks route's start points.
+    """
+    flags = fixed is None or (
+        isinstance(fixed, dict) and all(isinstance(v, bool) for v in fixed.values())
+    )
+    key = ("least certain pole", q, None if fixed is None else tuple(sorted(fixed.items())))
+    kept = local_models._derived.get(key) if flags else None
+    if kept is not None and kept[0] is data:
+        return float(kept[1])
+    try:
+        value = float(np.max(pole_uncertainty(local_models[q], data.subset([q]), fixed)))
+    except (np.linalg.LinAlgError, ValueError):
+        value = np.inf
+    if flags:
+        local_models._derived[key] = (data, value)
+    return value
 
 
 def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArray[np.int_]]:

@@ -184,6 +184,9 @@ class LocalModels(Sequence[LpvModel]):
         if len(self.starts) != N:
             raise ValueError(f"starts: expected one label per model ({N}), got {len(self.starts)}")
         self.consistency = consistency
+        # figures derived from one model and its point's data, computed once
+        # (lpvid.initial.continuation's pole spreads)
+        self._derived: dict[Any, tuple[Any, Any]] = {}
         for arr in (self.p, self.vnls, self.noise_floor, self.converged, self.unstable):
             if arr.shape[0] != N:
                 raise ValueError(f"expected one value per model ({N}), got shape {arr.shape}")
