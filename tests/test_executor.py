@@ -227,7 +227,7 @@ def test_the_local_models_subspace_starts_are_made_in_the_calling_thread(monkeyp
 def test_the_few_points_starts_on_an_executor_are_those_made_here():
     """The blocks route's starts and the global start from every point, handed out last first."""
     from lpvid.initial.blocks import hand_out_blocks
-    from lpvid.pipeline.fewpoints import global_everywhere
+    from lpvid.pipeline.misfit import global_everywhere
 
     true, fixed = lpvid.testing.one_group_lpv(0), {"D": True}
     data = lpvid.testing.noisy_data(
@@ -278,6 +278,32 @@ def test_the_blocks_route_handed_out_before_the_main_path_is_the_run_here(monkey
         assert ahead and all(f.cancelled() is not taken for f in ahead)
         first_fit = next(k for k, m in enumerate(said) if "gamma =" in m)
         assert said.index("handed _block_candidates_at") < first_fit
+
+
+def test_the_blocks_routes_handed_out_ahead_are_followed_in_their_piece(monkeypatch):
+    """The blocks route's paths followed in the piece that fitted their starts: the same
+    routes, counts and progress, in the same order, as followed after the main path."""
+    import lpvid.pipeline.run as run
+
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 1)  # the runs here: no threads of its own
+    here_said: list[str] = []
+    there_said: list[str] = []
+    followed_after: list[str] = []
+    real = run.follow
+
+    def follow(name: str, *args: Any) -> Any:
+        followed_after.append(name)
+        return real(name, *args)
+
+    monkeypatch.setattr(run, "follow", follow)
+    here = _few([0.0, 0.4, 1.0], None, here_said)
+    blocks_here = [name for name in followed_after if name.startswith("blocks:")]
+    followed_after.clear()
+    there = _few([0.0, 0.4, 1.0], LastFirst(there_said), there_said)
+    assert_same_run(here, there)
+    assert blocks_here  # the blocks route was followed, after the main path
+    assert len(followed_after) == 1  # the main path's route only: the blocks routes were ahead
+    assert [m for m in there_said if not m.startswith("handed ")] == here_said
 
 
 def test_the_blocks_route_handed_out_ahead_is_dropped_on_ctrl_c(monkeypatch):

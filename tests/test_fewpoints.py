@@ -332,3 +332,47 @@ def test_no_model_is_counted_twice_in_a_run(monkeypatch):
         res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
     assert res.between.members  # the routes were opened and competed
     assert len(counted) >= 2 and len(set(counted)) == len(counted)
+
+
+def test_the_routes_followed_ahead_are_those_open_routes_may_follow(monkeypatch):
+    """Within the noise of the least of the piece's candidates and the floor (the limit
+    open_routes applies is at most that); each followed with the path's settings but
+    its own progress, and its chosen entry counted."""
+    from types import SimpleNamespace
+
+    from lpvid.fit.judge import noise_slack
+    from lpvid.pipeline.path import Along
+
+    followed, counted = [], []
+
+    def follow(name, fit, gammas, data, structure, along):
+        along.say(f"{name} on its path")
+        followed.append((name, gammas, along.executor, structure))
+        return SimpleNamespace(entry=SimpleNamespace(model=name), fixed=structure, counted=None)
+
+    def count_silent(model, data, fixed, threshold):
+        counted.append((model, threshold))
+        return f"count of {model}", ""
+
+    monkeypatch.setattr(fewpoints, "follow", follow)
+    monkeypatch.setattr(fewpoints, "count_silent", count_silent)
+    data = SimpleNamespace(n_residuals=100)
+    slack = noise_slack(100)
+    along = Along(None, 0.05, None, None, False, None, print, executor=object())
+    ahead = fewpoints.FollowAhead(data, (0.1, 0.01), along, 1e-6)
+    for least, inside, outside in (
+        (90.0, 100 + slack - 1, 100 + slack + 1),
+        (200.0, 200 + slack - 1, 200 + slack + 1),
+    ):
+        followed.clear()
+        found = [
+            SimpleNamespace(name=f"blocks:{k}", vnls=v, fit=None, structure=k)
+            for k, v in enumerate((outside, least, inside))
+        ]
+        out = ahead(found)
+        assert list(out) == ["blocks:1", "blocks:2"]
+        assert [f[0] for f in followed] == ["blocks:1", "blocks:2"]
+        assert all(f[1] == (0.1, 0.01) and f[2] is None for f in followed)
+        assert out["blocks:2"].said == ["blocks:2 on its path"]
+        assert out["blocks:2"].route.counted == "count of blocks:2"
+    assert counted[-1] == ("blocks:2", 1e-6)

@@ -28,9 +28,9 @@ index of its first point) with its :attr:`~lpvid.initial.Candidate.structure`.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -220,10 +220,17 @@ class BlockPieces:
 
     spread: Spread
     pieces: list[Piece]
+    #: What each piece's ``after`` made of its candidates (:func:`hand_out_blocks`),
+    #: merged once taken.
+    after: dict[str, Any] = field(default_factory=dict)
 
     def take(self) -> list[Candidate]:
         """The candidates, in the order of their start points (waiting for them)."""
-        return [c for found in self.spread.take_all(self.pieces) for c in found]
+        out = []
+        for found, made in self.spread.take_all(self.pieces):
+            out += found
+            self.after.update(made)
+        return out
 
     def drop(self) -> None:
         """Drop the fits not taken (:meth:`lpvid._spread.Spread.drop`)."""
@@ -242,6 +249,7 @@ def hand_out_blocks(
     ftol: float = START_FTOL,
     executor: Executor | None = None,
     pieces: int | None = None,
+    after: Callable[[list[Candidate]], dict[str, Any]] | None = None,
 ) -> BlockPieces:
     """The blocks route's candidates, one per start point (module notes), handed out now.
 
@@ -253,7 +261,10 @@ def hand_out_blocks(
     candidates the same either way. ``.take()`` waits for them;
     :func:`lpvid.identify` hands them out before its main path, whose
     outcome decides whether it takes them or drops them
-    (:func:`lpvid.pipeline.fewpoints.open_routes`).
+    (:func:`lpvid.pipeline.fewpoints.open_routes`). ``after``: run in each
+    piece on its candidates once fitted (the work likely wanted next, done
+    where the piece runs); what it returns is merged into
+    :attr:`BlockPieces.after` when taken.
     """
     where = [int(q) for q in (start_points(data, local, fixed) if points is None else points)]
     cut = len(where) if pieces is None else max(1, min(pieces, len(where)))
@@ -261,18 +272,23 @@ def hand_out_blocks(
     how = (basis, fixed, local, validation, max_iter, ftol)
     spread = Spread(executor)
     return BlockPieces(
-        spread, spread.hand_out(_block_candidates_at, [(data, g, *how) for g in groups])
+        spread, spread.hand_out(_block_candidates_at, [(data, g, after, *how) for g in groups])
     )
 
 
 @single_blas
-def _block_candidates_at(data: FrfData, points: Sequence[int], *how: Any) -> list[Candidate]:
-    """The blocks route's candidates from ``points``, one after the other.
+def _block_candidates_at(
+    data: FrfData,
+    points: Sequence[int],
+    after: Callable[[list[Candidate]], dict[str, Any]] | None,
+    *how: Any,
+) -> tuple[list[Candidate], dict[str, Any]]:
+    """The blocks route's candidates from ``points``, one after the other, and ``after`` of them.
 
     ``how``: the rest of :func:`_block_candidate`'s arguments.
     """
-    found = (_block_candidate(data, q, *how) for q in points)
-    return [c for c in found if c is not None]
+    found = [c for c in (_block_candidate(data, q, *how) for q in points) if c is not None]
+    return found, ({} if after is None or not found else after(found))
 
 
 def _block_candidate(

@@ -50,36 +50,35 @@ and :func:`lpvid.next_points` measures there.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from lpvid._spread import Spread
-from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import between_points
 from lpvid.fit.judge import noise_slack
 from lpvid.initial.blocks import BlockPieces, hand_out_blocks
-from lpvid.initial.candidates import Candidate, fitted_candidate
-from lpvid.initial.globalstart import constant_start, free_groups
+from lpvid.initial.candidates import Candidate
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.frozen import frozen_stable
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.bulge import bulge
-from lpvid.pipeline.misfit import misfit
-from lpvid.pipeline.routes import Route
+from lpvid.pipeline.misfit import global_everywhere, misfit
+from lpvid.pipeline.path import Along
+from lpvid.pipeline.routes import Route, follow
 from lpvid.stable.scan import stability
 from lpvid.trust.silent import SilentCount, range_grid, silent_directions
 
 __all__ = [
     "COMPLEXITY",
     "CONSENSUS_TIE",
+    "FollowAhead",
     "choose_route",
     "committee",
     "consistent",
@@ -230,7 +229,8 @@ def open_routes(
     ``ahead``: the blocks route's fits from its usual start points, handed
     out before ``main`` was followed
     (:func:`lpvid.initial.blocks.hand_out_blocks`); taken when the points
-    leave the structure open, else dropped.
+    leave the structure open, else dropped. The routes its pieces followed
+    already (their ``after``, :class:`FollowAhead`) are taken as they are.
     """
     try:
         data, validation = problem.data, problem.validation
@@ -241,6 +241,7 @@ def open_routes(
         if problem.time_data is not None or (not wrong and validation is not None):
             return [main], [], None
         count = None if wrong else count_silent(e.model, data, main.fixed, threshold)[0]
+        main.counted = count
         if not wrong and (count is None or count.determined):
             return [main], [], count
         starts = problem.settings.starts
@@ -268,6 +269,7 @@ def open_routes(
                 executor=executor,
             )
         more = ahead.take()
+        followed = ahead.after  # the routes followed ahead (FollowAhead), by their start's name
         if wrong:
             more += global_everywhere(problem, local, executor)
         floor = data.n_residuals
@@ -277,49 +279,65 @@ def open_routes(
         for c in more:
             say(f"  {c.name}: V_NLS {c.vnls:.5g}" + ("" if c.stable else ", unstable"))
             if c.vnls <= limit or (wrong and c.vnls < e.vnls):
-                routes.append(follow_start(c))
+                ready = followed.get(c.name)
+                if ready is None:
+                    routes.append(follow_start(c))
+                    continue
+                for message in ready.said:
+                    say(message)
+                routes.append(ready.route)
         return routes, more, count
     finally:
         if ahead is not None:
             ahead.drop()  # nothing left when taken
 
 
-def global_everywhere(
-    problem: Any, local: LocalModels, executor: Executor | None = None
-) -> list[Candidate]:
-    """The global start with every group freed at once, from the local model of every point.
+@dataclass
+class Followed:
+    """A route followed ahead (:class:`FollowAhead`) and what it said on the way."""
 
-    The points side by side on ``executor`` (default here, one after the other).
+    route: Route
+    said: list[str]
+
+
+@dataclass(frozen=True)
+class FollowAhead:
+    """The blocks route's paths, followed in the piece that fitted their starts.
+
+    The ``after`` of :func:`lpvid.initial.blocks.hand_out_blocks` in a run
+    that hands the blocks route out before its main path: every candidate
+    of the piece that :func:`open_routes` could follow (its V_NLS within
+    the noise of the least of the piece's candidates and the floor: the
+    limit there is at most that, its least V_NLS also counting the main
+    path's entries and the other pieces') is followed through the path,
+    and its chosen entry counted (:func:`simplest_choices` asks for it).
+    ``along`` is the main path's, but for its ``say`` (the messages are
+    kept and said when the route is taken) and its executor (none: the
+    piece is where the route's fits run). What is not taken is dropped;
+    what is taken is the route :func:`open_routes` would have followed
+    itself, to the last bit.
     """
-    data, starts = problem.data, problem.settings.starts
-    how = (data, problem.order, problem.basis, problem.fixed, problem.validation, local)
-    calls = [(*how, q, starts.max_iter, starts.ftol) for q in range(data.n_points)]
-    return Spread(executor).map(_global_all, calls)
 
+    data: FrfData
+    gammas: tuple[float, ...]
+    along: Along
+    threshold: float
 
-@single_blas
-def _global_all(
-    data: FrfData,
-    order: int,
-    basis: Any,
-    fixed: Any,
-    validation: FrfData | None,
-    local: LocalModels,
-    point: int,
-    max_iter: int,
-    ftol: float,
-) -> Candidate:
-    """:func:`global_everywhere`'s candidate from the local model at ``point``."""
-    t0 = time.perf_counter()
-    const = constant_start(
-        data, order, basis, fixed, local=local, point=point, max_iter=max_iter, ftol=ftol
-    )
-    _, fit, start = free_groups(const, data, fixed, "all", max_iter=max_iter, ftol=ftol)
-    note = f"constant model from local model {point}, then every group freed"
-    seconds = time.perf_counter() - t0
-    return fitted_candidate(
-        f"global:all@{point}", fit, start, data, validation, seconds=seconds, note=note
-    )
+    def __call__(self, found: list[Candidate]) -> dict[str, Followed]:
+        """The routes of the candidates within the limit, by their name."""
+        floor = self.data.n_residuals
+        limit = max(min(c.vnls for c in found), floor) + noise_slack(floor)
+        out = {}
+        for c in found:
+            if c.vnls <= limit:
+                said: list[str] = []
+                along = replace(self.along, say=said.append, executor=None)
+                route = follow(c.name, c.fit, self.gammas, self.data, c.structure, along)
+                route.counted = count_silent(
+                    route.entry.model, self.data, route.fixed, self.threshold
+                )[0]
+                out[c.name] = Followed(route, said)
+        return out
 
 
 def choose_route(
@@ -329,7 +347,6 @@ def choose_route(
     tolerance: float,
     local: LocalModels,
     threshold: float = 1e-6,
-    counted: SilentCount | None = None,
 ) -> tuple[int, int, str, list[Member]]:
     """The route and entry returned, why, and the other members of the committee.
 
@@ -338,9 +355,8 @@ def choose_route(
     of the next measurement follow the routes the data left in the running.
 
     ``threshold``: the relative group magnitude at or below which a group
-    counts as dropped (the structures' counts); ``counted``: the count of
-    the first route's choice when already made (:func:`open_routes`'), at
-    that threshold.
+    counts as dropped (the structures' counts, made here where a route
+    does not hold its own, :attr:`~lpvid.pipeline.routes.Route.counted`).
 
     Members that are misfits (:func:`lpvid.pipeline.misfit.misfit`) leave the
     committee; when none is left, the routes' own choices compete on V_NLS.
@@ -369,7 +385,7 @@ def choose_route(
         )
         members = [m for m in members if m.route == 0]
     else:
-        choices, why = simplest_choices(routes, members, data, threshold, counted)
+        choices, why = simplest_choices(routes, members, data, threshold)
         pick, reason = consensus(members, data, choices)
         reason = f"{reason}; {why}"
         i, k = pick.route, pick.index
@@ -405,7 +421,6 @@ def simplest_choices(
     members: Sequence[Member],
     data: FrfData,
     threshold: float,
-    counted: SilentCount | None = None,
 ) -> tuple[list[tuple[int, int]], str]:
     """The routes' choices that compete in the consensus (module notes), and why.
 
@@ -413,15 +428,15 @@ def simplest_choices(
     ``K`` the directions its structure has over the range
     (``SilentCount.over_range`` of :mod:`lpvid.trust.silent`: those the points see
     and those they leave open); those within the noise (``2 sqrt(M)``) of
-    the least score compete. ``counted``: the first route's count, when
-    already made.
+    the least score compete. A route's count is its own when already made
+    (:attr:`~lpvid.pipeline.routes.Route.counted`, at ``threshold``).
     """
     inside = {(m.route, m.index) for m in members}
     scored = []
     for i, r in enumerate(routes):
         if (i, r.chosen) not in inside:
             continue
-        count = counted if i == 0 and counted is not None else None
+        count = r.counted
         if count is None:
             count, _ = count_silent(r.entry.model, data, r.fixed, threshold)
         k = 0 if count is None else count.over_range

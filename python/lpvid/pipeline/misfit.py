@@ -7,19 +7,28 @@ little above (it has fewer parameters per point). One more than
 find the fit the data hold (a start in the wrong basin, a structure the
 points do not support), or, on validation data, does not hold between the
 points. :func:`lpvid.identify` then tries harder (the blocks route from
-every point and global starts from every point, see
-:func:`lpvid.pipeline.fewpoints.open_routes`) and, when the model returned
+every point and global starts from every point, :func:`global_everywhere`;
+see :func:`lpvid.pipeline.fewpoints.open_routes`) and, when the model returned
 is still that far, warns with the figures and what to try; its summary
 says so.
 """
 
 from __future__ import annotations
 
+import time
+from concurrent.futures import Executor
+from typing import Any
+
 import numpy as np
 
+from lpvid._spread import Spread
+from lpvid._threads import single_blas
+from lpvid.data.frf import FrfData
+from lpvid.initial.candidates import Candidate, fitted_candidate
+from lpvid.initial.globalstart import constant_start, free_groups
 from lpvid.initial.localmodels import LocalModels
 
-__all__ = ["MISFIT", "advice", "local_level", "misfit"]
+__all__ = ["MISFIT", "advice", "global_everywhere", "local_level", "misfit"]
 
 #: A model whose V_NLS is more than this many times the larger of its noise
 #: floor and the local models' total is a misfit (on validation data: more
@@ -76,3 +85,41 @@ def advice(local: LocalModels) -> str:
         "basis degree or order (lpvid.select), or validation data"
     )
     return "; ".join(tips)
+
+
+def global_everywhere(
+    problem: Any, local: LocalModels, executor: Executor | None = None
+) -> list[Candidate]:
+    """The global start with every group freed at once, from the local model of every point.
+
+    The points side by side on ``executor`` (default here, one after the other).
+    """
+    data, starts = problem.data, problem.settings.starts
+    how = (data, problem.order, problem.basis, problem.fixed, problem.validation, local)
+    calls = [(*how, q, starts.max_iter, starts.ftol) for q in range(data.n_points)]
+    return Spread(executor).map(_global_all, calls)
+
+
+@single_blas
+def _global_all(
+    data: FrfData,
+    order: int,
+    basis: Any,
+    fixed: Any,
+    validation: FrfData | None,
+    local: LocalModels,
+    point: int,
+    max_iter: int,
+    ftol: float,
+) -> Candidate:
+    """:func:`global_everywhere`'s candidate from the local model at ``point``."""
+    t0 = time.perf_counter()
+    const = constant_start(
+        data, order, basis, fixed, local=local, point=point, max_iter=max_iter, ftol=ftol
+    )
+    _, fit, start = free_groups(const, data, fixed, "all", max_iter=max_iter, ftol=ftol)
+    note = f"constant model from local model {point}, then every group freed"
+    seconds = time.perf_counter() - t0
+    return fitted_candidate(
+        f"global:all@{point}", fit, start, data, validation, seconds=seconds, note=note
+    )

@@ -22,6 +22,7 @@ from lpvid.fit.judge import noise_slack, tied
 from lpvid.fit.results import FitResult, L21Result
 from lpvid.pipeline.path import Along, run_path
 from lpvid.pipeline.result import PathEntry
+from lpvid.trust.silent import SilentCount
 from lpvid.trust.steps import stable_fit
 
 __all__ = ["Route", "follow", "knee", "path_choice"]
@@ -51,6 +52,9 @@ class Route:
     warned : list of (type, str)
         What its fits warned, category and message (held back: only the
         route returned says it, :meth:`say_warnings`).
+    counted : SilentCount or None
+        The count of the chosen entry's structure
+        (:func:`lpvid.pipeline.fewpoints.count_silent`), once made.
     """
 
     name: str
@@ -61,6 +65,7 @@ class Route:
     reason: str
     fixed: Any
     warned: list[tuple[type[Warning], str]] = field(default_factory=list)
+    counted: SilentCount | None = None
 
     def say_warnings(self) -> None:
         """Warn what the route's fits warned."""

@@ -12,6 +12,7 @@ import time
 import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,7 @@ from lpvid.initial.local import local_models
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.bulge import bulge
-from lpvid.pipeline.fewpoints import choose_route, open_between, open_routes
+from lpvid.pipeline.fewpoints import FollowAhead, choose_route, open_between, open_routes
 from lpvid.pipeline.misfit import advice, misfit
 from lpvid.pipeline.path import Along
 from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
@@ -51,6 +52,10 @@ __all__ = [
 ]
 
 Progress = Callable[[str], Any]
+
+
+def _unsaid(message: str) -> None:
+    """Where a piece's progress goes until it is taken (:class:`FollowAhead` keeps its own)."""
 
 
 def _say(progress: Progress | None, message: str) -> None:
@@ -330,7 +335,7 @@ def _run(
     along = Along(
         validation, tol, l21, p_range, stable, time_cost, lambda m: _say(progress, m), executor
     )
-    ahead = _blocks_ahead(problem, local, executor) if small else None
+    ahead = _blocks_ahead(problem, local, executor, along, gs) if small else None
     try:
         main = follow(start.name, nls, gs, data, fixed, along)
     except BaseException:
@@ -339,7 +344,7 @@ def _run(
         raise
     timings["path_s"] = time.perf_counter() - t
     t = time.perf_counter()
-    routes, more, counted = open_routes(
+    routes, more, _ = open_routes(
         problem,
         main,
         local,
@@ -349,7 +354,7 @@ def _run(
         ahead,
     )
     route_index, chosen, reason, members = choose_route(
-        routes, data, validation, tol, local, l21.threshold, counted
+        routes, data, validation, tol, local, l21.threshold
     )
     route = routes[route_index]
     route.say_warnings()
@@ -432,16 +437,19 @@ def _run(
 
 
 def _blocks_ahead(
-    problem: Any, local: LocalModels, executor: Executor | None
+    problem: Any, local: LocalModels, executor: Executor | None, along: Along, gammas: Any
 ) -> BlockPieces | None:
     """The blocks route's fits handed out before the main path, when it may need them.
 
     Without validation data or time records,
     :func:`lpvid.pipeline.fewpoints.open_routes` takes them when the points
     leave the main path's structure open; the executor's threads fit them
-    while the main path runs (a small run's fits take one core each). The
-    same fits either way: only when they run changes. None without an
-    executor, or when only a misfit could open the routes.
+    while the main path runs (a small run's fits take one core each), and
+    then follow the paths of those it may follow
+    (:class:`lpvid.pipeline.fewpoints.FollowAhead`; ``along`` and
+    ``gammas`` the main path's). The same fits and paths either way: only
+    when they run changes. None without an executor, or when only a misfit
+    could open the routes.
     """
     if executor is None or problem.validation is not None or problem.time_data is not None:
         return None
@@ -455,4 +463,10 @@ def _blocks_ahead(
         ftol=starts.ftol,
         executor=executor,
         pieces=max(1, cores() - 1),
+        after=FollowAhead(
+            problem.data,
+            tuple(float(g) for g in gammas),
+            replace(along, say=_unsaid, executor=None),
+            problem.settings.path.l21.threshold,
+        ),
     )
