@@ -379,6 +379,29 @@ def test_executor_must_be_an_executor(stage):
         lpvid.identify(ds.identification, ds.order, ds.basis, executor=2)
 
 
+def test_a_process_pool_that_forks_is_refused_before_any_work(stage):
+    """Its workers would wait forever for the core's pool threads a fork does not copy."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    ds, _ = stage
+    for method in ("fork", "forkserver", "spawn"):
+        if method not in multiprocessing.get_all_start_methods():
+            continue
+        pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context(method))
+        try:  # no worker starts before the first task
+            if method == "fork":
+                refused = pytest.raises(ValueError, match="forks its workers.*'forkserver'")
+                with refused:
+                    lpvid.identify(ds.identification, ds.order, ds.basis, executor=pool)
+                with refused:
+                    lpvid.select(ds.identification, [4], [1], executor=pool)
+            else:
+                assert check_executor(pool) is pool
+        finally:
+            pool.shutdown()
+
+
 def test_a_dask_client_is_taken_as_its_executor():
     """A distributed.Client is read as its get_executor(); a look-alike elsewhere is not."""
     pool = ThreadPoolExecutor(1)

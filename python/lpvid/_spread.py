@@ -37,7 +37,7 @@ import os
 import threading
 import warnings
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from concurrent.futures import TimeoutError as WaitTimeout  # not the builtin before 3.11
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -124,7 +124,17 @@ def check_executor(executor: Any) -> Executor | None:
 
     A ``distributed.Client`` (what Dask users hold) is taken as its
     ``get_executor()``: the same cluster, behind the Executor interface.
+    A :class:`~concurrent.futures.ProcessPoolExecutor` that forks its
+    workers (the default on Linux before Python 3.14) is refused: a fork
+    copies the locks of the core's thread pool but not its threads, and a
+    worker's first parallel loop waits for them forever.
     """
+    if isinstance(executor, ProcessPoolExecutor) and _forks(executor):
+        raise ValueError(
+            "executor: this ProcessPoolExecutor forks its workers, which copies the locks of "
+            "lpvid's core thread pool but not its threads: their fits would hang. Create it "
+            "with mp_context=multiprocessing.get_context('forkserver') (or 'spawn')"
+        )
     if executor is None or isinstance(executor, Executor):
         return executor
     if _is_dask_client(executor):
@@ -135,6 +145,12 @@ def check_executor(executor: Any) -> Executor | None:
         f"executor: expected a concurrent.futures.Executor or a distributed.Client, "
         f"got {type(executor).__name__}"
     )
+
+
+def _forks(pool: ProcessPoolExecutor) -> bool:
+    """Whether ``pool`` starts its workers by fork (its context, where CPython keeps it)."""
+    context = getattr(pool, "_mp_context", None)
+    return context is not None and context.get_start_method() == "fork"
 
 
 def _is_dask_client(obj: Any) -> bool:
