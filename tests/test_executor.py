@@ -251,6 +251,24 @@ def test_the_few_points_starts_on_an_executor_are_those_made_here():
             assert a.vnls == b.vnls
 
 
+def test_the_continuation_on_an_executor_is_the_walk_here():
+    """Each side of the root its own piece (handed out last first here): the same models."""
+    true = lpvid.testing.one_group_lpv(0)
+    points = [0.0, 0.2, 0.45, 0.7, 1.0]
+    data = lpvid.testing.noisy_data(
+        true, points, np.linspace(2, 100, 60), np.random.default_rng(1), 0.01
+    )
+    plain = lpvid.identify_lti(data, 10, strictly_proper=True)
+    here = lpvid.initial.continue_local(data, plain, root=2, strictly_proper=True)
+    pool = LastFirst()
+    there = lpvid.initial.continue_local(data, plain, root=2, strictly_proper=True, executor=pool)
+    assert [fn.__name__ for fn in pool.ran] == ["_walk", "_walk"]
+    assert here.starts == there.starts and any(s != "plain" for s in here.starts)
+    np.testing.assert_array_equal(here.vnls, there.vnls)
+    for a, b in zip([*here, *here.initial], [*there, *there.initial], strict=True):
+        np.testing.assert_array_equal(a.theta, b.theta)
+
+
 def _few(points: list[float], executor: Executor | None, said: list | None = None) -> Any:
     """one_group_lpv(0) at ``points``, 60 lines, without validation data."""
     true = lpvid.testing.one_group_lpv(0)

@@ -386,6 +386,7 @@ def candidates_of(
                 strictly_proper=proper,
                 max_iter=max_iter,
                 diagnosis=diagnosis,
+                executor=executor,
             )
             which = ", ".join(f"{q}: {s}" for q, s in enumerate(cont.starts))
             smile_route(

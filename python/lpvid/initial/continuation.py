@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._spread import Spread
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import unit_scaled
@@ -112,6 +114,78 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
     return propagation_order(arr, root)
 
 
+def _branches(order: NDArray[np.int_], parent: NDArray[np.int_]) -> list[list[int]]:
+    """The walk after the root, cut into the subtrees of the root's children (each in order)."""
+    root = int(order[0])
+    top: dict[int, int] = {}
+    out: dict[int, list[int]] = {}
+    for q in (int(k) for k in order[1:]):
+        m = int(parent[q])
+        top[q] = q if m == root else top[m]
+        out.setdefault(top[q], []).append(q)
+    return list(out.values())
+
+
+@single_blas
+def _walk(
+    branch: list[int],
+    data: FrfData,
+    local: LocalModels,
+    parent: NDArray[np.int_],
+    fixed: Any,
+    tol: float,
+    max_iter: int,
+    diag: Consistency,
+) -> dict[int, tuple[LpvModel, float, int, LpvModel | None]]:
+    """:func:`continue_local` along one branch of the tree, its points in order.
+
+    Per point: its model, V_NLS, parent, and the start it was continued
+    from (None where the plain model was kept).
+    """
+    scaled = unit_scaled(data.p)
+    kept: dict[int, LpvModel] = {}
+    out = {}
+    for q in branch:
+        m = int(parent[q])
+        start = kept.get(m, local[m])
+        point = data.subset([q])
+        floor = float(point.n_residuals)
+        target = min(float(local.vnls[q]), floor) + tol * np.sqrt(floor)
+
+        def stop(row: dict[str, Any], target: float = target) -> bool:
+            return bool(row["vnls"] > target)  # False stops the fit
+
+        fit = raise_if_interrupted(
+            fit_nls(start, point, fixed, max_iter=max_iter, callback=stop, warn=False)
+        )
+        cont = LpvModel(
+            *fit.model.matrices().values(),
+            basis=start.basis,
+            Ts=data.Ts,
+            info={
+                "method": "continuation + fit_nls",
+                "start": f"point {m}",
+                "n_iter": int(fit.n_iter),
+            },
+        )
+        # Both starts are acceptable when they fit within the noise of the
+        # better one; of those, the ones consistent with the parent's model
+        # (pole distance within the diagnosis' allowance for this step) are
+        # preferred, the continued one first (it also keeps the state
+        # coordinates of its neighbour); else the one nearest the parent.
+        best_v = min(fit.vnls, float(local.vnls[q]))
+        options = {"continuation": (cont, fit.vnls), "plain": (local[q], float(local.vnls[q]))}
+        fits_ok = [k for k, (_, v) in options.items() if v <= best_v + tol * np.sqrt(floor)]
+        step = float(np.linalg.norm(scaled[q] - scaled[m]))
+        allowed = max(diag.threshold * diag.reference * step, diag.min_distance)
+        dist = {k: pole_distance(options[k][0], start) for k in fits_ok}
+        near = [k for k in fits_ok if dist[k] <= allowed]
+        choice = near[0] if near else min(fits_ok, key=lambda k: dist[k])
+        kept[q], cost = options[choice]
+        out[q] = (kept[q], float(cost), m, start if choice == "continuation" else None)
+    return out
+
+
 @single_blas
 def continue_local(
     data: FrfData,
@@ -122,6 +196,7 @@ def continue_local(
     tolerance: float = 1.0,
     max_iter: int = 100,
     diagnosis: Consistency | None = None,
+    executor: Executor | None = None,
 ) -> LocalModels:
     """Local models by continuation along the scheduling axes.
 
@@ -160,6 +235,11 @@ def continue_local(
         Most Levenberg-Marquardt steps per point.
     diagnosis : Consistency, optional
         :func:`lpvid.consistency` of ``local``, when already computed.
+    executor : concurrent.futures.Executor, optional
+        Where the walks run: the tree below each neighbour of the root is
+        one walk (in one dimension, the points on either side of it), side
+        by side on ``executor`` (default here, one after the other). The
+        models are the same either way.
 
     Returns
     -------
@@ -185,58 +265,22 @@ def continue_local(
     if root is None:
         root = best_determined(local, data, diag, fixed)
     order, parent = continuation_order(data.p, root)
-    N = data.n_points
-    models: list[LpvModel | None] = [None] * N
+    models: list[LpvModel] = list(local)
     costs = np.array(local.vnls, dtype=float)
     conv = np.array(local.converged, dtype=bool)
-    starts = ["plain"] * N
+    starts = ["plain"] * data.n_points
     initial: list[LpvModel] = list(local.initial) if local.initial is not None else list(local)
-    models[root] = local[root]
-    scaled = unit_scaled(data.p)
-    for q in order[1:]:
-        m = int(parent[q])
-        start = models[m]
-        assert start is not None
-        point = data.subset([q])
-        floor = float(point.n_residuals)
-        target = min(float(local.vnls[q]), floor) + tol * np.sqrt(floor)
-
-        def stop(row: dict[str, Any], target: float = target) -> bool:
-            return bool(row["vnls"] > target)  # False stops the fit
-
-        fit = raise_if_interrupted(
-            fit_nls(start, point, fixed, max_iter=max_iter, callback=stop, warn=False)
-        )
-        cont = LpvModel(
-            *fit.model.matrices().values(),
-            basis=start.basis,
-            Ts=data.Ts,
-            info={
-                "method": "continuation + fit_nls",
-                "start": f"point {m}",
-                "n_iter": int(fit.n_iter),
-            },
-        )
-        # Both starts are acceptable when they fit within the noise of the
-        # better one; of those, the ones consistent with the parent's model
-        # (pole distance within the diagnosis' allowance for this step) are
-        # preferred, the continued one first (it also keeps the state
-        # coordinates of its neighbour); else the one nearest the parent.
-        best_v = min(fit.vnls, float(local.vnls[q]))
-        options = {"continuation": (cont, fit.vnls), "plain": (local[q], float(local.vnls[q]))}
-        fits_ok = [k for k, (_, v) in options.items() if v <= best_v + tol * np.sqrt(floor)]
-        step = float(np.linalg.norm(scaled[q] - scaled[m]))
-        allowed = max(diag.threshold * diag.reference * step, diag.min_distance)
-        dist = {k: pole_distance(options[k][0], start) for k in fits_ok}
-        near = [k for k in fits_ok if dist[k] <= allowed]
-        choice = near[0] if near else min(fits_ok, key=lambda k: dist[k])
-        models[q], costs[q] = options[choice]
-        if choice == "continuation":
-            conv[q] = True
-            starts[q] = f"continuation from {m}"
-            initial[q] = start
+    how = (data, local, parent, fixed, tol, max_iter, diag)
+    walks = [(branch, *how) for branch in _branches(order, parent)]
+    for walked in Spread(executor).map(_walk, walks):
+        for q, (model, cost, m, start) in walked.items():
+            models[q], costs[q] = model, cost
+            if start is not None:  # the continued model was kept
+                conv[q] = True
+                starts[q] = f"continuation from {m}"
+                initial[q] = start
     out = LocalModels(
-        models,  # type: ignore[arg-type]
+        models,
         data.p,
         data.freqs_hz,
         costs,

@@ -86,8 +86,9 @@ def identify_lti(
     executor : concurrent.futures.Executor, optional
         Where the points' models are refined, each start's refinement one
         task (the subspace starts are computed here; see
-        :func:`lpvid.identify`); default here, one after the other. The
-        models are the same either way. The continuation runs here.
+        :func:`lpvid.identify`), and the continuation's walks
+        (:func:`lpvid.initial.continue_local`); default here, one after the
+        other. The models are the same either way.
 
     Returns
     -------
@@ -189,7 +190,12 @@ def local_models(
             models, data.p, data.freqs_hz, costs, floor, conv, initial, consistency=diagnosis
         )
     return continue_local(
-        data, plain, strictly_proper=strictly_proper, max_iter=max_iter, diagnosis=diagnosis
+        data,
+        plain,
+        strictly_proper=strictly_proper,
+        max_iter=max_iter,
+        diagnosis=diagnosis,
+        executor=executor,
     )
 
 
