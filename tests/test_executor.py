@@ -123,10 +123,12 @@ class _Counted(ThreadPoolExecutor):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.handed = 0
+        self.pieces: set[str] = set()  # the pieces' functions (lpvid._spread._run's argument)
         _Counted.made.append(self)
 
     def submit(self, *args: Any, **kwargs: Any) -> Any:
         self.handed += 1
+        self.pieces.add(args[2].__name__)
         return super().submit(*args, **kwargs)
 
 
@@ -139,6 +141,26 @@ def test_without_an_executor_identify_runs_on_threads_of_its_own_and_the_same(st
     assert_same_run(here, _identify(ds))
     (pool,) = _Counted.made
     assert pool._max_workers == 3 and pool.handed > len(here.local) and pool._shutdown
+
+
+def test_a_large_run_refines_its_local_models_on_threads_of_its_own(stage, monkeypatch):
+    """One point's fits are small where the run is not: only they go to threads; the same run."""
+    import lpvid.pipeline.run as run
+    from lpvid._spread import SMALL_RUN_BYTES
+
+    ds, here = stage
+    real = run.pipeline_memory
+    monkeypatch.setattr(run, "pipeline_memory", lambda *a: (SMALL_RUN_BYTES + 1, real(*a)[1]))
+    _Counted.made = []
+    monkeypatch.setattr(lpvid._spread, "ThreadPoolExecutor", _Counted)
+    monkeypatch.setattr(lpvid._spread, "cores", lambda: 2)
+    assert_same_run(here, _identify(ds))
+    (pool,) = _Counted.made
+    assert pool.pieces == {"_refined"} and pool.handed >= len(here.local) and pool._shutdown
+    monkeypatch.setattr(run, "local_memory", lambda *a: SMALL_RUN_BYTES + 1)  # a large point
+    _Counted.made = []
+    assert_same_run(here, _identify(ds))
+    assert _Counted.made == []
 
 
 def test_own_threads_only_when_none_is_given_and_there_are_cores(monkeypatch):

@@ -109,7 +109,10 @@ def own_threads(executor: Executor | None, need: int) -> Iterator[Executor | Non
     the core's pool as on two), so two side by side on two threads take
     about half the time. A large model's fits take every core themselves:
     threads beside them gained 8 % at n = 16 and would hold two fits'
-    memory at once (:func:`lpvid.identify`'s notes).
+    memory at once (:func:`lpvid.identify`'s notes). ``need`` is that of the
+    work handed out: a whole run's, or one local model's fit
+    (:func:`lpvid.fit.memory.local_memory`), whose refinements go on
+    threads also in a large run.
     """
     main = threading.current_thread() is threading.main_thread()
     if executor is not None or not main or cores() < 2 or need > SMALL_RUN_BYTES:

@@ -64,6 +64,7 @@ __all__ = [
     "covariance_memory",
     "fit_memory",
     "human",
+    "local_memory",
     "pipeline_memory",
     "resident",
     "runs_at_once",
@@ -337,6 +338,26 @@ def pipeline_memory(
     if refit:
         arrays = max(arrays, lm["evaluation"] + covariance_memory(n_params, n_params))
     return resident(arrays), _describe(order, l, r, nb, n_params, sizes)
+
+
+def local_memory(data: Any, order: int) -> int:
+    """Bytes one local model's fit needs at its peak: one point of ``data``, an LTI model.
+
+    The Levenberg-Marquardt fit of :func:`sizes_memory` at one point with a
+    constant basis, as :func:`resident` memory: what each of the local
+    models' refinements side by side on a thread of its own adds
+    (:func:`lpvid.identify`).
+    """
+    lm = sizes_memory(
+        order,
+        data.n_outputs,
+        data.n_inputs,
+        0,
+        method="lm",
+        frf=(1, data.n_lines),
+        continuous=data.Ts is None,
+    )
+    return resident(lm["total"])
 
 
 def runs_at_once(needs: Sequence[int], most: int, what: str) -> int:
