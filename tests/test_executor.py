@@ -180,6 +180,10 @@ def test_own_threads_only_when_none_is_given_and_there_are_cores(monkeypatch):
     assert got._shutdown
     with own_threads(None, SMALL_RUN_BYTES + 1) as got:  # a large run: its fits take the cores
         assert got is None
+    with own_threads(None, 2**30, budget=2**30) as got:  # within a budget of its own
+        assert isinstance(got, ThreadPoolExecutor)
+    with own_threads(None, 2**30 + 1, budget=2**30) as got:
+        assert got is None
 
     def on_a_thread():
         with own_threads(None, 0) as got:

@@ -97,7 +97,9 @@ SMALL_RUN_BYTES = 256 * 2**20
 
 
 @contextmanager
-def own_threads(executor: Executor | None, need: int) -> Iterator[Executor | None]:
+def own_threads(
+    executor: Executor | None, need: int, budget: int = SMALL_RUN_BYTES
+) -> Iterator[Executor | None]:
     """``executor``; when None, threads of this process, one per core, for the ``with`` block.
 
     Only for a small run (``need``, its peak memory, at most
@@ -109,13 +111,14 @@ def own_threads(executor: Executor | None, need: int) -> Iterator[Executor | Non
     the core's pool as on two), so two side by side on two threads take
     about half the time. A large model's fits take every core themselves:
     threads beside them gained 8 % at n = 16 and would hold two fits'
-    memory at once (:func:`lpvid.identify`'s notes). ``need`` is that of the
-    work handed out: a whole run's, or one local model's fit
-    (:func:`lpvid.fit.memory.local_memory`), whose refinements go on
-    threads also in a large run.
+    memory at once (:func:`lpvid.identify`'s notes). ``need`` is what the
+    work handed out needs, ``budget`` the most it may need: a whole run
+    against :data:`SMALL_RUN_BYTES`, or a large run's local models side by
+    side (one per core, :func:`lpvid.fit.memory.local_memory` each)
+    against the run's own peak, which they then do not raise.
     """
     main = threading.current_thread() is threading.main_thread()
-    if executor is not None or not main or cores() < 2 or need > SMALL_RUN_BYTES:
+    if executor is not None or not main or cores() < 2 or need > budget:
         yield executor
         return
     with ThreadPoolExecutor(cores(), thread_name_prefix="lpvid") as pool:

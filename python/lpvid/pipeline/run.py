@@ -205,8 +205,8 @@ def identify(
         the time, n = 10 0.94. A large model's fits take every core
         themselves (n = 16 0.92), and two at once would hold two fits'
         memory; but one point's fits are small where the run is not: a
-        large run refines its local models on threads of its own when one
-        of them needs at most that memory
+        large run refines its local models on threads of its own, one per
+        core, when together they need no more memory than the run itself
         (:func:`lpvid.fit.memory.local_memory`; n = 16 2x2 the local
         models 2.1 -> 1.6 s). The run is the same either way. A Dask cluster: its
         ``distributed.Client(address)`` itself (taken as its
@@ -267,8 +267,7 @@ def identify(
     need, sizes = pipeline_memory(p.data, p.order, p.basis, p.time_data, p.settings.refit)
     check_memory(need, "identify", sizes)  # before any work
     with own_threads(check_executor(executor), need) as spread_on:
-        small = need <= SMALL_RUN_BYTES
-        return _run(problem, progress=progress, executor=spread_on, t0=t0, small=small)
+        return _run(problem, progress=progress, executor=spread_on, t0=t0, need=need)
 
 
 def _run(
@@ -277,15 +276,18 @@ def _run(
     progress: Progress | None,
     executor: Executor | None,
     t0: float,
-    small: bool = False,
+    need: int,
 ) -> IdentifyResult:
     """The pipeline of :func:`identify` on a checked problem (nothing it holds is checked again).
 
-    ``small``: a run whose fits hardly spread over the cores inside the core
+    ``need``: the run's peak memory estimate. A small run's fits hardly
+    spread over the cores inside the core
     (:data:`lpvid._spread.SMALL_RUN_BYTES`): the blocks route's fits are
     handed out to ``executor`` while the main path runs
-    (:func:`_blocks_ahead`).
+    (:func:`_blocks_ahead`). A large run's local models go on threads of
+    their own when, one per core, they need no more than the run will.
     """
+    small = need <= SMALL_RUN_BYTES
     data, n, basis, fixed = problem.data, problem.order, problem.basis, problem.fixed
     validation, time_cost, p_range = problem.validation, problem.time_data, problem.p_range
     settings, starts = problem.settings, problem.settings.starts
@@ -297,7 +299,8 @@ def _run(
     t = time.perf_counter()
     # One point's fits are small even where the run is not: side by side on
     # threads of its own (see the executor's notes).
-    with own_threads(executor, local_memory(data, n)) as points_on:
+    side_by_side = cores() * local_memory(data, n)
+    with own_threads(executor, side_by_side, max(need, SMALL_RUN_BYTES)) as points_on:
         local = local_models(data, n, strictly_proper=strictly_proper(fixed), executor=points_on)
     timings["local_s"] = time.perf_counter() - t
 
