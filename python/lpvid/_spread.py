@@ -102,9 +102,9 @@ def own_threads(
 ) -> Iterator[Executor | None]:
     """``executor``; when None, threads of this process, one per core, for the ``with`` block.
 
-    Only for a small run (``need``, its peak memory, at most
-    :data:`SMALL_RUN_BYTES`) on more than one core, called from the main
-    thread (a run on a thread of another pool, :func:`lpvid.select`'s or
+    Only for work whose peak memory ``need`` is at most ``budget`` (by
+    default a small run: at most :data:`SMALL_RUN_BYTES`), on more than one
+    core, called from the main thread (a run on a thread of another pool, :func:`lpvid.select`'s or
     the caller's, is already spread with its siblings). A small model's fits
     hardly spread over the cores inside the core (a local model of ten
     states on one output and input takes the same time on one thread of
@@ -115,7 +115,7 @@ def own_threads(
     work handed out needs, ``budget`` the most it may need: a whole run
     against :data:`SMALL_RUN_BYTES`, or a large run's local models side by
     side (one per core, :func:`lpvid.fit.memory.local_memory` each)
-    against the run's own peak, which they then do not raise.
+    against the run's own peak estimate.
     """
     main = threading.current_thread() is threading.main_thread()
     if executor is not None or not main or cores() < 2 or need > budget:
