@@ -136,11 +136,11 @@ def _walk(
     tol: float,
     max_iter: int,
     diag: Consistency,
-) -> dict[int, tuple[LpvModel, float, int, LpvModel | None]]:
+) -> dict[int, tuple[LpvModel, float, LpvModel | None]]:
     """:func:`continue_local` along one branch of the tree, its points in order.
 
-    Per point: its model, V_NLS, parent, and the start it was continued
-    from (None where the plain model was kept).
+    Per point: its model, V_NLS, and the start it was continued from (None
+    where the plain model was kept).
     """
     scaled = unit_scaled(data.p)
     kept: dict[int, LpvModel] = {}
@@ -182,7 +182,7 @@ def _walk(
         near = [k for k in fits_ok if dist[k] <= allowed]
         choice = near[0] if near else min(fits_ok, key=lambda k: dist[k])
         kept[q], cost = options[choice]
-        out[q] = (kept[q], float(cost), m, start if choice == "continuation" else None)
+        out[q] = (kept[q], float(cost), start if choice == "continuation" else None)
     return out
 
 
@@ -273,11 +273,11 @@ def continue_local(
     how = (data, local, parent, fixed, tol, max_iter, diag)
     walks = [(branch, *how) for branch in _branches(order, parent)]
     for walked in Spread(executor).map(_walk, walks):
-        for q, (model, cost, m, start) in walked.items():
+        for q, (model, cost, start) in walked.items():
             models[q], costs[q] = model, cost
             if start is not None:  # the continued model was kept
                 conv[q] = True
-                starts[q] = f"continuation from {m}"
+                starts[q] = f"continuation from {parent[q]}"
                 initial[q] = start
     out = LocalModels(
         models,
