@@ -424,7 +424,7 @@ def test_executor_must_be_an_executor(stage):
 
 
 def test_a_process_pool_that_forks_is_refused_before_any_work(stage):
-    """Its workers would wait forever for the core's pool threads a fork does not copy."""
+    """It forks while lpvid may run on other threads, whose locks it would copy held."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 

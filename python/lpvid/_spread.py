@@ -131,15 +131,19 @@ def check_executor(executor: Any) -> Executor | None:
     A ``distributed.Client`` (what Dask users hold) is taken as its
     ``get_executor()``: the same cluster, behind the Executor interface.
     A :class:`~concurrent.futures.ProcessPoolExecutor` that forks its
-    workers (the default on Linux before Python 3.14) is refused: a fork
-    copies the locks of the core's thread pool but not its threads, and a
-    worker's first parallel loop waits for them forever.
+    workers (the default on Linux before Python 3.14) is refused: it forks
+    them while lpvid may run on other threads of this process (its pieces
+    on threads, the core's pool), and a lock one of them holds at that
+    moment (the core's allocator's) would be held for good in the worker.
+    (A process forked while lpvid is idle runs it on a thread pool of its
+    own.)
     """
     if isinstance(executor, ProcessPoolExecutor) and _forks(executor):
         raise ValueError(
-            "executor: this ProcessPoolExecutor forks its workers, which copies the locks of "
-            "lpvid's core thread pool but not its threads: their fits would hang. Create it "
-            "with mp_context=multiprocessing.get_context('forkserver') (or 'spawn')"
+            "executor: this ProcessPoolExecutor forks its workers while lpvid may run on other "
+            "threads of this process, and a lock held there at the fork would be held for good "
+            "in the worker (its fits could hang). Create it with "
+            "mp_context=multiprocessing.get_context('forkserver') (or 'spawn')"
         )
     if executor is None or isinstance(executor, Executor):
         return executor

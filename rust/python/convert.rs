@@ -1,6 +1,7 @@
 //! Array conversions and the one place where core errors become Python
 //! exceptions.
 
+use super::pool::in_this_process;
 use crate::error::{catch_panic, Error};
 use numpy::ndarray::Dimension;
 use numpy::{Complex64, PyArray1, PyReadonlyArray, PyReadonlyArray1, PyUntypedArrayMethods};
@@ -30,18 +31,19 @@ impl From<Error> for PyErr {
 /// Run core work with the GIL released. A panic inside becomes a Python
 /// exception (MemoryError for a failed allocation, RuntimeError for a
 /// bug), never a `PanicException`: every call into the core from Python
-/// goes through here or [`guarded`].
+/// goes through here or [`guarded`], and in a process forked from the one
+/// that loaded the module runs on a thread pool of its own
+/// ([`super::pool`]).
 pub fn detached<T: Send>(
     py: Python<'_>,
     work: impl FnOnce() -> crate::Result<T> + Send,
 ) -> PyResult<T> {
-    Ok(py.detach(|| catch_panic(work))?)
+    Ok(py.detach(|| catch_panic(|| in_this_process(work)))?)
 }
 
-/// Run core work that keeps the GIL (constructors), with panics caught
-/// as in [`detached`].
-pub fn guarded<T>(work: impl FnOnce() -> crate::Result<T>) -> PyResult<T> {
-    Ok(catch_panic(work)?)
+/// Run core work that keeps the GIL (constructors), as [`detached`].
+pub fn guarded<T: Send>(work: impl FnOnce() -> crate::Result<T> + Send) -> PyResult<T> {
+    Ok(catch_panic(|| in_this_process(work))?)
 }
 
 /// Copy a 1-D float64 array (any strides).

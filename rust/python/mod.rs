@@ -6,6 +6,7 @@ mod fit_py;
 mod memory_py;
 mod model_py;
 mod outcome_py;
+mod pool;
 mod problem_py;
 mod settings_py;
 mod simulate_py;
@@ -56,6 +57,7 @@ fn _loops_here(here: bool) -> bool {
 fn core_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     #[cfg(target_os = "linux")]
     crate::memory::blocks::system_heaps();
+    pool::loaded_here();
     // faer's calls that are not told their parallelism run on one thread:
     // some of them sum in another order on another number of threads (see
     // `crate::base::dense`), and no result may depend on the machine's cores.
