@@ -161,5 +161,48 @@ fn bench_simulation(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_evaluation, bench_steps, bench_simulation);
+/// The Cholesky factorisation of the Levenberg-Marquardt step at n = 16 2x2
+/// (1620 wide) and of n = 32's refit (3600): faer's own and the core's
+/// (faer's to the last bit, its updates on the AVX-512 kernel), on the pool.
+fn bench_cholesky(c: &mut Criterion) {
+    use faer::{Accum, Mat, Par};
+    use lpvid::base::cholesky::factor;
+    use lpvid::base::gram_product::Kernel;
+    let mut group = c.benchmark_group("cholesky");
+    group.sample_size(10);
+    for n in [1620, 3600] {
+        let b = Mat::from_fn(n, n + 3, |i, j| {
+            (((i * 31 + j * 17) % 101) as f64 * 0.713).sin()
+        });
+        let mut a = Mat::<f64>::identity(n, n);
+        faer::linalg::matmul::matmul(
+            a.as_mut(),
+            Accum::Add,
+            b.as_ref(),
+            b.transpose(),
+            1.0,
+            Par::Seq,
+        );
+        for (name, kernel) in [("faer", None), ("core, AVX-512", Some(Kernel::Avx512))] {
+            if kernel.is_some_and(|k: Kernel| !k.available()) {
+                continue;
+            }
+            group.bench_function(format!("{n} wide, {name}"), |bench| {
+                bench.iter(|| {
+                    let mut l = a.clone();
+                    black_box(factor(l.as_mut(), kernel, Par::rayon(0)).expect("scratch"))
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_evaluation,
+    bench_steps,
+    bench_simulation,
+    bench_cholesky
+);
 criterion_main!(benches);

@@ -24,7 +24,6 @@ use crate::error::Result;
 use crate::memory::out_of_memory_for;
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::evd::{self_adjoint_evd, self_adjoint_evd_scratch, ComputeEigenvectors};
 use faer::linalg::matmul::matmul;
 use faer::linalg::svd::{svd, svd_scratch, ComputeSvdVectors};
@@ -52,7 +51,7 @@ pub fn par_for(flops: f64) -> Par {
 
 /// The scratch space `req` of a faer kernel ([`crate::Error::OutOfMemory`],
 /// naming `what`, when it cannot be had).
-fn scratch(req: StackReq, what: &'static str) -> Result<MemBuffer> {
+pub(super) fn scratch(req: StackReq, what: &'static str) -> Result<MemBuffer> {
     MemBuffer::try_new(req).map_err(|_| out_of_memory_for(req.size_bytes(), what))
 }
 
@@ -70,15 +69,13 @@ pub fn cholesky(mut a: Mat<f64>) -> Result<Option<Mat<f64>>> {
 
 /// [`cholesky`] in place: `a` is overwritten, `L` in its lower triangle
 /// (faer's factorisation also writes into the strict upper triangle).
-/// False when `a` is not numerically positive definite.
+/// False when `a` is not numerically positive definite. faer's
+/// factorisation to the last bit, its updates on the AVX-512 kernel where
+/// the route runs it ([`super::cholesky`]).
 pub fn factor_lower(a: MatMut<'_, f64>) -> Result<bool> {
     let n = a.nrows();
     let par = par_for((n * n * n) as f64 / 3.0);
-    let req = cholesky_in_place_scratch::<f64>(n, par, Default::default());
-    let mut mem = scratch(req, "the scratch space of a Cholesky factorisation")?;
-    let stack = MemStack::new(&mut mem);
-    let factored = cholesky_in_place(a, Default::default(), par, stack, Default::default());
-    Ok(factored.is_ok())
+    super::cholesky::factor(a, super::cholesky::kernel_for_updates(), par)
 }
 
 /// `a b` on this thread (see the module's note: a product with one column

@@ -4,7 +4,7 @@
 //!
 //! The routes differ only in the code that the core chooses at run time:
 //! the Gram products of the Gauss-Newton evaluation
-//! ([`crate::eval::gram_product`]: 16 x 12 blocks on AVX-512F, 8 x 6 on AVX2 and
+//! ([`crate::base::gram_product`]: 16 x 12 blocks on AVX-512F, 8 x 6 on AVX2 and
 //! FMA, a plain loop otherwise), the packing of their panels and the
 //! simulation and time-record kernels (`pulp`'s AVX2 code or the plain
 //! loops). Everything else (faer, Clarabel, the compiler's own code) is the

@@ -24,12 +24,12 @@
 //! `lti^2` times `2 l r` per line) this takes `2 max(l, r)` times fewer
 //! flops: 4x on a 2x2 system, 6x on a 3x3.
 
+use crate::base::gram_product::{
+    gram_product, gram_product_with, scratch_len, Kernel, Samples, FAER_ENTRIES,
+};
 use crate::base::lanes::{Cx, LANES};
 use crate::base::layout::{Matrix, Shape};
 use crate::error::Result;
-use crate::eval::gram_product::{
-    gram_product, gram_product_with, scratch_len, Kernel, Samples, FAER_ENTRIES,
-};
 use crate::eval::lti::Resolvent;
 use crate::memory::{try_vec, try_zeros};
 use faer::{Accum, Mat};

@@ -2,11 +2,10 @@
 //! ([`model`]), frozen models and their responses ([`lti`], [`response`]),
 //! the residual, V_NLS, its gradient and the Gauss-Newton matrix of a
 //! [`problem::Problem`] from the Kronecker structure of the Jacobian
-//! ([`kron_gram`], [`gram_product`], [`point_sums`], [`point_factors`]),
+//! ([`kron_gram`], on [`crate::base::gram_product`]; [`point_sums`], [`point_factors`]),
 //! the sensitivities ([`sensitivity`]), and what the optimisers need of
 //! any cost ([`objective`], [`sum`]).
 
-pub mod gram_product;
 pub mod kron_gram;
 pub mod lti;
 pub mod model;

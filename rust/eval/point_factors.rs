@@ -29,9 +29,9 @@
 //! every machine.
 
 use crate::base::dense::{cholesky_solve, factor_lower};
+use crate::base::gram_product::{gram_product, scratch_len};
 use crate::base::spread::{self, worth_spreading};
 use crate::error::Result;
-use crate::eval::gram_product::{gram_product, scratch_len};
 use crate::memory::{try_vec, try_zeros};
 use faer::{Accum, Mat};
 

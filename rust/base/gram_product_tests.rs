@@ -1,4 +1,4 @@
-//! Tests of [`crate::eval::gram_product`].
+//! Tests of [`crate::base::gram_product`].
 
 use super::*;
 use faer::Mat;

@@ -1,5 +1,7 @@
 //! The Gram products of [`crate::eval::kron_gram`]: `C += V U^T` for row-major
-//! `V` (`m x k`) and `U` (`p x k`) into a column-major `C`.
+//! `V` (`m x k`) and `U` (`p x k`) into a column-major `C`; and, for the
+//! updates of the Cholesky factorisation ([`super::cholesky`]), the same
+//! sums of column-major `V` and `U` ([`gram_product_columns`]).
 //!
 //! Products of more than [`FAER_ENTRIES`] entries run on the core's own
 //! kernels, with every entry summed in one order on every processor: entry
@@ -186,9 +188,98 @@ pub fn gram_product_with(
     } else {
         Kernel::Plain
     };
+    if kernel == Kernel::Plain {
+        return plain(c, add, v, u, stride, samples);
+    }
+    blocks(
+        kernel,
+        c,
+        add,
+        k,
+        scratch,
+        |panel, r0, width| pack(panel, v, stride, samples, r0, width, m),
+        |panel, r0, width| pack(panel, u, stride, samples, r0, width, p),
+    );
+}
+
+/// `C += V U^T` (or `C = V U^T`, `accum` [`Accum::Replace`]) for
+/// column-major `V` (`m x k`) and `U` (`p x k`), `V` negated when
+/// `negate_v` (exactly: `(-V) U^T`): the sums of [`gram_product_with`]
+/// over their `k` samples on `kernel` (the plain loop when the processor
+/// does not run it), whatever the size of `C`. Each sample's values of a
+/// block of rows lie together here, so their panels are copies rather
+/// than transposes. `scratch` holds at least [`scratch_len`]`(p, k)` values.
+pub fn gram_product_columns(
+    kernel: Kernel,
+    c: MatMut<'_, f64>,
+    accum: Accum,
+    v: MatRef<'_, f64>,
+    u: MatRef<'_, f64>,
+    negate_v: bool,
+    scratch: &mut [f64],
+) {
+    let (m, p) = (c.nrows(), c.ncols());
+    let k = v.ncols();
+    assert!(v.nrows() == m && u.nrows() == p && u.ncols() == k, "shapes");
+    assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
+    let add = matches!(accum, Accum::Add);
+    if m == 0 || p == 0 {
+        return;
+    }
+    if k == 0 {
+        if !add {
+            let mut c = c;
+            c.fill(0.0);
+        }
+        return;
+    }
+    let sign = if negate_v { -1.0 } else { 1.0 };
+    blocks(
+        kernel,
+        c,
+        add,
+        k,
+        scratch,
+        |panel, r0, width| pack_columns(panel, v, r0, width, sign),
+        |panel, r0, width| pack_columns(panel, u, r0, width, 1.0),
+    );
+}
+
+/// Rows `r0..r0 + width` of a column-major matrix times `sign`, sample by
+/// sample: `panel[s * width + q] = sign x[r0 + q, s]`, zero past its rows.
+fn pack_columns(panel: &mut [f64], x: MatRef<'_, f64>, r0: usize, width: usize, sign: f64) {
+    let live = x.nrows().saturating_sub(r0).min(width);
+    for s in 0..x.ncols() {
+        let to = &mut panel[s * width..(s + 1) * width];
+        let col = x.col(s);
+        for (q, slot) in to[..live].iter_mut().enumerate() {
+            *slot = sign * col[r0 + q];
+        }
+        to[live..].fill(0.0);
+    }
+}
+
+/// The products of [`gram_product_with`] and [`gram_product_columns`] on a
+/// blocking kernel (the plain loop on packed panels when the processor does
+/// not run `kernel`, or for [`Kernel::Plain`]): `pack_v(panel, r0, width)`
+/// and `pack_u` fill a panel of `width` rows from `r0` on, sample by sample.
+fn blocks(
+    kernel: Kernel,
+    mut c: MatMut<'_, f64>,
+    add: bool,
+    k: usize,
+    scratch: &mut [f64],
+    pack_v: impl Fn(&mut [f64], usize, usize),
+    pack_u: impl Fn(&mut [f64], usize, usize),
+) {
+    let (m, p) = (c.nrows(), c.ncols());
+    let kernel = if kernel.available() {
+        kernel
+    } else {
+        Kernel::Plain
+    };
     let (mr, nr) = match kernel {
-        Kernel::Plain => return plain(c, add, v, u, stride, samples),
-        Kernel::Avx2 => (MR_256, NR_256),
+        Kernel::Plain | Kernel::Avx2 => (MR_256, NR_256),
         Kernel::Avx512 => (MR_512, NR_512),
     };
     // Panels: `mr` rows of V (and `nr` of U) side by side per sample, rows
@@ -197,7 +288,7 @@ pub fn gram_product_with(
     let (up, rest) = rest.split_at_mut(p.div_ceil(nr) * nr * k);
     let block = &mut rest[..mr * nr];
     for (jp, panel) in up.chunks_mut(nr * k).enumerate() {
-        pack(panel, u, stride, samples, jp * nr, nr, p);
+        pack_u(panel, jp * nr, nr);
     }
     // Whole blocks of a C with contiguous columns are added to (or
     // written) in place; the others summed from zero in `block`.
@@ -205,7 +296,7 @@ pub fn gram_product_with(
         .ok()
         .filter(|_| c.row_stride() == 1);
     for i0 in (0..m).step_by(mr) {
-        pack(vp, v, stride, samples, i0, mr, m);
+        pack_v(vp, i0, mr);
         for (jp, panel) in up.chunks(nr * k).enumerate() {
             let j0 = jp * nr;
             let whole = i0 + mr <= m && j0 + nr <= p;
@@ -216,21 +307,18 @@ pub fn gram_product_with(
                     (block.as_mut_ptr(), mr, true)
                 }
             };
-            #[cfg(target_arch = "x86_64")]
             // SAFETY: the kernel is available (checked above); the panels
             // hold `k` samples of `mr` (`nr`) values, and `out` is an
             // `mr x nr` block with columns `ld` apart: in `C` (a whole
             // block of it, its columns contiguous) or in `block`.
             unsafe {
                 match kernel {
+                    #[cfg(target_arch = "x86_64")]
                     Kernel::Avx512 => x86::block_512(vp, panel, k, out, ld, onto),
-                    _ => x86::block_256(vp, panel, k, out, ld, onto),
+                    #[cfg(target_arch = "x86_64")]
+                    Kernel::Avx2 => x86::block_256(vp, panel, k, out, ld, onto),
+                    _ => block_plain(vp, panel, k, mr, nr, out, ld, onto),
                 }
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            // SAFETY: as above.
-            unsafe {
-                block_plain(vp, panel, k, mr, nr, out, ld, onto)
             };
             if out == block.as_mut_ptr() {
                 for jj in 0..nr.min(p - j0) {
@@ -336,11 +424,11 @@ fn plain(mut c: MatMut<'_, f64>, add: bool, v: &[f64], u: &[f64], stride: usize,
 
 /// Adds a block of `mr x nr` sums from the panels to `out` (columns `ld`
 /// apart), or writes them there (`add` false), plainly (other
-/// architectures).
+/// architectures, and processors without the kernel asked for).
 ///
 /// # Safety
 /// `out` is an `mr x nr` block with columns `ld` apart.
-#[cfg(not(target_arch = "x86_64"))]
+#[allow(clippy::too_many_arguments)]
 unsafe fn block_plain(
     vp: &[f64],
     up: &[f64],
@@ -364,110 +452,8 @@ unsafe fn block_plain(
 }
 
 #[cfg(target_arch = "x86_64")]
-mod x86 {
-    use super::{MR_256, MR_512, NR_256, NR_512};
-    use std::arch::x86_64::*;
-
-    /// A kernel on one register width: `out[jj * ld + ii] += sum_s
-    /// vp[s * mr + ii] up[s * nr + jj]` (`=` with `add` false), each sum
-    /// from zero with one fused multiply-add per sample in order, `mr` rows
-    /// as two registers of `half` doubles.
-    macro_rules! block_kernel {
-        ($(#[$doc:meta])* $name:ident, $feature:literal, $mr:ident, $nr:ident, $half:literal,
-         $zero:ident, $load:ident, $store:ident, $splat:ident, $fma:ident, $add:ident) => {
-            $(#[$doc])*
-            #[target_feature(enable = $feature)]
-            pub unsafe fn $name(
-                vp: &[f64],
-                up: &[f64],
-                k: usize,
-                out: *mut f64,
-                ld: usize,
-                add: bool,
-            ) {
-                debug_assert!(vp.len() >= $mr * k && up.len() >= $nr * k);
-                let mut acc = [[$zero(); 2]; $nr];
-                let (a, b) = (vp.as_ptr(), up.as_ptr());
-                for s in 0..k {
-                    let a0 = $load(a.add(s * $mr));
-                    let a1 = $load(a.add(s * $mr + $half));
-                    for (jj, pair) in acc.iter_mut().enumerate() {
-                        let bj = $splat(*b.add(s * $nr + jj));
-                        pair[0] = $fma(a0, bj, pair[0]);
-                        pair[1] = $fma(a1, bj, pair[1]);
-                    }
-                }
-                for (jj, pair) in acc.iter().enumerate() {
-                    let col = out.add(jj * ld);
-                    let top = col.add($half);
-                    if add {
-                        $store(col, $add($load(col), pair[0]));
-                        $store(top, $add($load(top), pair[1]));
-                    } else {
-                        $store(col, pair[0]);
-                        $store(top, pair[1]);
-                    }
-                }
-            }
-        };
-    }
-
-    /// Four rows of `x` (`stride` apart, from the first) into columns
-    /// `q..q + 4` of a `width`-wide panel, samples `0..k` (`k` a multiple
-    /// of four): `panel[s * width + q + i] = x[i * stride + s]`.
-    ///
-    /// # Safety
-    /// The processor must run AVX2; `x` holds `3 stride + k` values and
-    /// `panel` `k width`, `q + 4 <= width`.
-    #[target_feature(enable = "avx2")]
-    pub unsafe fn transpose4(
-        panel: &mut [f64],
-        x: &[f64],
-        stride: usize,
-        k: usize,
-        q: usize,
-        width: usize,
-    ) {
-        assert!(k.is_multiple_of(4) && q + 4 <= width && panel.len() >= k * width);
-        assert!(k == 0 || x.len() >= 3 * stride + k);
-        let (src, dst) = (x.as_ptr(), panel.as_mut_ptr());
-        for s in (0..k).step_by(4) {
-            let r0 = _mm256_loadu_pd(src.add(s));
-            let r1 = _mm256_loadu_pd(src.add(stride + s));
-            let r2 = _mm256_loadu_pd(src.add(2 * stride + s));
-            let r3 = _mm256_loadu_pd(src.add(3 * stride + s));
-            let (t0, t1) = (_mm256_unpacklo_pd(r0, r1), _mm256_unpackhi_pd(r0, r1));
-            let (t2, t3) = (_mm256_unpacklo_pd(r2, r3), _mm256_unpackhi_pd(r2, r3));
-            let at = dst.add(s * width + q);
-            _mm256_storeu_pd(at, _mm256_permute2f128_pd(t0, t2, 0x20));
-            _mm256_storeu_pd(at.add(width), _mm256_permute2f128_pd(t1, t3, 0x20));
-            _mm256_storeu_pd(at.add(2 * width), _mm256_permute2f128_pd(t0, t2, 0x31));
-            _mm256_storeu_pd(at.add(3 * width), _mm256_permute2f128_pd(t1, t3, 0x31));
-        }
-    }
-
-    block_kernel!(
-        /// The kernel in 16 x 12 blocks.
-        ///
-        /// # Safety
-        /// The processor must run AVX-512F; `vp` holds `16 k` and `up` `12 k`
-        /// values, and `out` is a `16 x 12` block with columns `ld` apart.
-        block_512, "avx512f", MR_512, NR_512, 8,
-        _mm512_setzero_pd, _mm512_loadu_pd, _mm512_storeu_pd, _mm512_set1_pd, _mm512_fmadd_pd,
-        _mm512_add_pd
-    );
-
-    block_kernel!(
-        /// The kernel in 8 x 6 blocks.
-        ///
-        /// # Safety
-        /// The processor must run AVX2 and FMA; `vp` holds `8 k` and `up` `6 k`
-        /// values, and `out` is an `8 x 6` block with columns `ld` apart.
-        block_256, "avx2,fma", MR_256, NR_256, 4,
-        _mm256_setzero_pd, _mm256_loadu_pd, _mm256_storeu_pd, _mm256_set1_pd, _mm256_fmadd_pd,
-        _mm256_add_pd
-    );
-}
+#[path = "gram_x86.rs"]
+mod x86;
 
 #[cfg(test)]
 #[path = "gram_product_tests.rs"]
