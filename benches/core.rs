@@ -165,24 +165,13 @@ fn bench_simulation(c: &mut Criterion) {
 /// (1620 wide) and of n = 32's refit (3600): faer's own and the core's
 /// (faer's to the last bit, its updates on the AVX-512 kernel), on the pool.
 fn bench_cholesky(c: &mut Criterion) {
-    use faer::{Accum, Mat, Par};
+    use faer::Par;
     use lpvid::base::cholesky::factor;
     use lpvid::base::gram_product::Kernel;
     let mut group = c.benchmark_group("cholesky");
     group.sample_size(10);
     for n in [1620, 3600] {
-        let b = Mat::from_fn(n, n + 3, |i, j| {
-            (((i * 31 + j * 17) % 101) as f64 * 0.713).sin()
-        });
-        let mut a = Mat::<f64>::identity(n, n);
-        faer::linalg::matmul::matmul(
-            a.as_mut(),
-            Accum::Add,
-            b.as_ref(),
-            b.transpose(),
-            1.0,
-            Par::Seq,
-        );
+        let a = lpvid::testing::spd_matrix(n, 0.0);
         for (name, kernel) in [("faer", None), ("core, AVX-512", Some(Kernel::Avx512))] {
             if kernel.is_some_and(|k: Kernel| !k.available()) {
                 continue;

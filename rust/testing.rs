@@ -18,6 +18,25 @@ pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
         .install(f)
 }
 
+/// A symmetric positive definite `n x n` matrix, `B B^T + I/2` for an
+/// irregular `n x (n + 3)` matrix `B`: no entry of its Cholesky factor is
+/// a round number.
+pub fn spd_matrix(n: usize, seed: f64) -> faer::Mat<f64> {
+    let b = faer::Mat::from_fn(n, n + 3, |i, j| {
+        (((i * 31 + j * 17) % 101) as f64 * 0.713 + seed).sin() * (1.0 + ((i + 2 * j) % 5) as f64)
+    });
+    let mut a = faer::Mat::from_fn(n, n, |i, j| if i == j { 0.5 } else { 0.0 });
+    faer::linalg::matmul::matmul(
+        a.as_mut(),
+        faer::Accum::Add,
+        b.as_ref(),
+        b.transpose(),
+        1.0,
+        faer::Par::Seq,
+    );
+    a
+}
+
 /// `||a - b|| / ||b||`: how far a vector is from a reference.
 pub fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
     let gap = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>();

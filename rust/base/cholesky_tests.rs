@@ -1,25 +1,8 @@
 //! Tests of [`crate::base::cholesky`].
 
 use super::*;
+use crate::testing::{on_threads, spd_matrix as spd};
 use faer::Mat;
-
-/// A symmetric positive definite `n x n` matrix, irregular enough that no
-/// entry of its factor is a round number.
-fn spd(n: usize, seed: f64) -> Mat<f64> {
-    let b = Mat::from_fn(n, n + 3, |i, j| {
-        (((i * 31 + j * 17) % 101) as f64 * 0.713 + seed).sin() * (1.0 + ((i + 2 * j) % 5) as f64)
-    });
-    let mut a = Mat::from_fn(n, n, |i, j| if i == j { 0.5 } else { 0.0 });
-    matmul(
-        a.as_mut(),
-        Accum::Add,
-        b.as_ref(),
-        b.transpose(),
-        1.0,
-        Par::Seq,
-    );
-    a
-}
 
 /// faer's own factorisation, on this thread.
 fn faers(a: &Mat<f64>) -> (Mat<f64>, bool) {
@@ -64,16 +47,12 @@ fn every_kernel_gives_faers_factor_to_the_last_bit() {
 #[test]
 fn on_a_pool_the_factor_is_the_same() {
     // Large enough that the update's halves run side by side.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(3)
-        .build()
-        .expect("a pool");
     for n in [300, 700] {
         let a = spd(n, 1.1);
         let (want, _) = faers(&a);
         for kernel in [Kernel::Avx2, Kernel::Avx512] {
             let mut got = a.clone();
-            let ok = pool.install(|| factor(got.as_mut(), Some(kernel), Par::rayon(0)));
+            let ok = on_threads(3, || factor(got.as_mut(), Some(kernel), Par::rayon(0)));
             assert!(ok.expect("scratch"));
             assert_same_lower(&got, &want, &format!("{kernel:?} on 3 threads"));
         }

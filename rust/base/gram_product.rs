@@ -174,13 +174,7 @@ pub fn gram_product_with(
     assert!(v.len() >= m * stride && u.len() >= p * stride);
     assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
     let add = matches!(accum, Accum::Add);
-    if m == 0 || p == 0 {
-        return;
-    }
-    if k == 0 {
-        if !add {
-            c.fill(0.0);
-        }
+    if nothing_to_sum(c.as_mut(), add, k) {
         return;
     }
     let kernel = if kernel.available() {
@@ -223,14 +217,8 @@ pub fn gram_product_columns(
     assert!(v.nrows() == m && u.nrows() == p && u.ncols() == k, "shapes");
     assert!(scratch.len() >= scratch_len(p, k), "scratch too short");
     let add = matches!(accum, Accum::Add);
-    if m == 0 || p == 0 {
-        return;
-    }
-    if k == 0 {
-        if !add {
-            let mut c = c;
-            c.fill(0.0);
-        }
+    let mut c = c;
+    if nothing_to_sum(c.as_mut(), add, k) {
         return;
     }
     let sign = if negate_v { -1.0 } else { 1.0 };
@@ -243,6 +231,18 @@ pub fn gram_product_columns(
         |panel, r0, width| pack_columns(panel, v, r0, width, sign),
         |panel, r0, width| pack_columns(panel, u, r0, width, 1.0),
     );
+}
+
+/// Whether a product of `k` samples into `c` has no sum to take: `c` is
+/// empty, or `k` is zero (then `c` is left, or zeroed when not `add`).
+fn nothing_to_sum(mut c: MatMut<'_, f64>, add: bool, k: usize) -> bool {
+    if c.nrows() == 0 || c.ncols() == 0 {
+        return true;
+    }
+    if k == 0 && !add {
+        c.fill(0.0);
+    }
+    k == 0
 }
 
 /// Rows `r0..r0 + width` of a column-major matrix times `sign`, sample by
