@@ -40,7 +40,7 @@ const BLOCK: usize = 128;
 /// Rows of the update's blocks on the diagonal, which faer computes whole.
 const DIAGONAL: usize = 16;
 /// Columns of a rectangle the kernel takes at a time: their panel (of up
-/// to [`BLOCK`] samples) is 240 KB.
+/// to 128 samples, faer's block) is 240 KB.
 pub const COLUMNS: usize = 240;
 
 /// Factor `a` in place, `L` in its lower triangle, as faer's
