@@ -25,7 +25,7 @@
 use crate::base::dense::scratch;
 use crate::base::gram_product::{gram_product_columns, scratch_len, Kernel, FAER_ENTRIES};
 use crate::error::Result;
-use crate::memory::try_vec;
+use crate::memory::try_grow;
 use faer::dyn_stack::MemStack;
 use faer::linalg::cholesky::llt::factor::{cholesky_in_place, cholesky_in_place_scratch};
 use faer::linalg::matmul::matmul;
@@ -57,7 +57,7 @@ pub fn factor(a: MatMut<'_, f64>, kernel: Option<Kernel>, par: Par) -> Result<bo
     let stack = MemStack::new(&mut mem);
     match kernel {
         None => Ok(base(a, par, stack)),
-        Some(kernel) => blocked(a, kernel, par, stack),
+        Some(kernel) => blocked(a, kernel, par, stack, &mut Vec::new()),
     }
 }
 
@@ -74,8 +74,16 @@ fn base(a: MatMut<'_, f64>, par: Par, stack: &mut MemStack) -> bool {
     cholesky_in_place(a, Default::default(), par, stack, Default::default()).is_ok()
 }
 
-/// faer's recursion (`cholesky_recursion` of its LDL^T module, as `L L^T`).
-fn blocked(mut a: MatMut<'_, f64>, kernel: Kernel, par: Par, stack: &mut MemStack) -> Result<bool> {
+/// faer's recursion (`cholesky_recursion` of its LDL^T module, as `L L^T`);
+/// `scratch` is the kernel's, grown when needed and kept for the next
+/// rectangle.
+fn blocked(
+    mut a: MatMut<'_, f64>,
+    kernel: Kernel,
+    par: Par,
+    stack: &mut MemStack,
+    scratch: &mut Vec<f64>,
+) -> Result<bool> {
     let n = a.ncols();
     if n <= BASE {
         return Ok(base(a, par, stack));
@@ -85,11 +93,11 @@ fn blocked(mut a: MatMut<'_, f64>, kernel: Kernel, par: Par, stack: &mut MemStac
     while j < n {
         let bs = width.min(n - j);
         let (mut a00, _, mut a10, a11) = a.as_mut().get_mut(j.., j..).split_at_mut(bs, bs);
-        if !blocked(a00.as_mut(), kernel, par, stack)? {
+        if !blocked(a00.as_mut(), kernel, par, stack, scratch)? {
             return Ok(false);
         }
         solve_lower_triangular_in_place(a00.as_ref(), a10.as_mut().transpose_mut(), par);
-        update(a11, a10.as_ref(), kernel, par)?;
+        update(a11, a10.as_ref(), kernel, par, scratch)?;
         j += bs;
     }
     Ok(true)
@@ -104,16 +112,29 @@ struct Panel<'a> {
 
 /// `a11 -= l l^T` on the lower triangle of `a11`, as faer's triangular
 /// product (`mat_x_mat_into_lower`).
-fn update(a11: MatMut<'_, f64>, l: MatRef<'_, f64>, kernel: Kernel, par: Par) -> Result<()> {
+fn update(
+    a11: MatMut<'_, f64>,
+    l: MatRef<'_, f64>,
+    kernel: Kernel,
+    par: Par,
+    scratch: &mut Vec<f64>,
+) -> Result<()> {
     if l.nrows() == 0 {
         return Ok(());
     }
-    lower(a11, &Panel { l, kernel }, 0, par)
+    lower(a11, &Panel { l, kernel }, 0, par, scratch)
 }
 
 /// The lower triangle of `dst -= L_r L_r^T`, `L_r` the panel's rows from
-/// `r0` on (as many as `dst` has): halves, as faer cuts them.
-fn lower(dst: MatMut<'_, f64>, panel: &Panel<'_>, r0: usize, par: Par) -> Result<()> {
+/// `r0` on (as many as `dst` has): halves, as faer cuts them. Where the
+/// halves run side by side, the second has a scratch of its own.
+fn lower(
+    dst: MatMut<'_, f64>,
+    panel: &Panel<'_>,
+    r0: usize,
+    par: Par,
+    scratch: &mut Vec<f64>,
+) -> Result<()> {
     let n = dst.nrows();
     let k = panel.l.ncols();
     if n <= DIAGONAL {
@@ -133,26 +154,33 @@ fn lower(dst: MatMut<'_, f64>, panel: &Panel<'_>, r0: usize, par: Par) -> Result
     }
     let h = n / 2;
     let (top, _, left, bottom) = dst.split_at_mut(h, h);
-    let square = || rectangle(left, panel, r0 + h, r0);
-    let triangles = || -> Result<()> {
-        lower(top, panel, r0, par)?;
-        lower(bottom, panel, r0 + h, par)
+    let square = |scratch: &mut Vec<f64>| rectangle(left, panel, r0 + h, r0, scratch);
+    let triangles = |scratch: &mut Vec<f64>| -> Result<()> {
+        lower(top, panel, r0, par, scratch)?;
+        lower(bottom, panel, r0 + h, par, scratch)
     };
     // faer's own limit for running the halves side by side (no bit depends on it).
     if matches!(par, Par::Rayon(_)) && n * n * k >= BLOCK * BLOCK * BLOCK {
-        let (a, b) = rayon::join(square, triangles);
+        let (a, b) = rayon::join(|| square(scratch), || triangles(&mut Vec::new()));
         a.and(b)
     } else {
-        square()?;
-        triangles()
+        square(scratch)?;
+        triangles(scratch)
     }
 }
 
 /// `dst -= L_i L_j^T`, `L_i` the panel's rows from `i0` on and `L_j` from
 /// `j0` (as many as `dst` has rows and columns): on faer as faer's product
 /// computes it when it has at most [`FAER_ENTRIES`] entries, else on the
-/// kernel, [`COLUMNS`] columns at a time.
-fn rectangle(mut dst: MatMut<'_, f64>, panel: &Panel<'_>, i0: usize, j0: usize) -> Result<()> {
+/// kernel, [`COLUMNS`] columns at a time (`scratch` grown when shorter
+/// than the kernel needs).
+fn rectangle(
+    mut dst: MatMut<'_, f64>,
+    panel: &Panel<'_>,
+    i0: usize,
+    j0: usize,
+    scratch: &mut Vec<f64>,
+) -> Result<()> {
     let (m, p) = dst.shape();
     let k = panel.l.ncols();
     if m * p <= FAER_ENTRIES {
@@ -161,12 +189,15 @@ fn rectangle(mut dst: MatMut<'_, f64>, panel: &Panel<'_>, i0: usize, j0: usize) 
         matmul(dst, Accum::Add, li, lj.transpose(), -1.0, Par::Seq);
         return Ok(());
     }
-    let width = p.min(COLUMNS);
-    let mut scratch = try_vec(
-        scratch_len(width, k),
-        0.0,
-        "the scratch of a Cholesky factor's update",
-    )?;
+    let need = scratch_len(p.min(COLUMNS), k);
+    if scratch.len() < need {
+        try_grow(
+            scratch,
+            need - scratch.len(),
+            "the scratch of a Cholesky factor's update",
+        )?;
+        scratch.resize(need, 0.0);
+    }
     let li = panel.l.subrows(i0, m);
     for c0 in (0..p).step_by(COLUMNS) {
         let cols = COLUMNS.min(p - c0);
@@ -177,7 +208,7 @@ fn rectangle(mut dst: MatMut<'_, f64>, panel: &Panel<'_>, i0: usize, j0: usize) 
             li,
             panel.l.subrows(j0 + c0, cols),
             true,
-            &mut scratch,
+            scratch,
         );
     }
     Ok(())
