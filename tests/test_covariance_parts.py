@@ -218,3 +218,32 @@ def test_the_rank_rule_drops_eigenvalues_below_k_eps_times_the_largest():
         else:  # only the direction (1, 1) / sqrt(2), eigenvalue 1 + c
             expect.append(np.full((2, 2), 0.5) / (1 + c))
     np.testing.assert_allclose(inv, block_diag(*expect), atol=1e-10)
+
+
+@pytest.mark.parametrize("held", ["B", "A1"])
+def test_the_free_similarity_directions_leave_the_held_parameters_alone(rng, held):
+    """Rejects a null space cut from the thin SVD where it is short (fewer held rows than n^2).
+
+    Holding B (8 rows at n = 4 with a one-function basis: fewer than the 16
+    transformations) needs the full ``vt``; holding A(1) and D (18 rows) the
+    thin one serves. Either way the directions span the null space of the
+    held rows (scipy's ``null_space``, an independent computation).
+    """
+    from scipy.linalg import null_space
+
+    basis = lpvid.Polynomial(1, domain=(0.0, 1.0))
+    A = 0.3 * rng.normal(size=(2, 4, 4))
+    B, C, D = rng.normal(size=(2, 4, 1)), rng.normal(size=(2, 1, 4)), rng.normal(size=(2, 1, 1))
+    m = lpvid.LpvModel(A, B, C, D, basis=basis, Ts=1.0)
+    fixed = {"B": True} if held == "B" else {"A": [1], "D": True}
+    free = ~lpvid.fixed_mask(m, fixed)
+    full = lpvid.model.similarity.similarity_directions(m)
+    T = free_similarity_directions(m, free)
+    want = null_space(full[~free])
+    assert T.shape[1] == want.shape[1] == 16 - np.linalg.matrix_rank(full[~free])
+    # The same span: the directions, in the full theta, are full @ (some basis of want).
+    moved = np.zeros((free.size, T.shape[1]))
+    moved[free] = T
+    np.testing.assert_allclose(moved[~free], 0.0, atol=1e-12)
+    coef = np.linalg.lstsq(full @ want, moved, rcond=None)[0]
+    np.testing.assert_allclose(full @ want @ coef, moved, atol=1e-10 * np.abs(moved).max())

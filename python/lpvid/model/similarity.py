@@ -31,6 +31,7 @@ __all__ = [
     "free_similarity_directions",
     "pointwise_similarity_directions",
     "flat_at_points",
+    "complement_basis",
 ]
 
 
@@ -142,8 +143,36 @@ def free_similarity_directions(model: LpvModel, free: NDArray[np.bool_]) -> NDAr
     """
     T = similarity_directions(model)
     if np.any(~free):
-        _, sv, vt = np.linalg.svd(T[~free])
+        held = T[~free]
+        # Only ``vt`` is read: the full ``U`` (held x held) is made only
+        # where ``vt`` needs it to be square (fewer held rows than
+        # directions); else the thin one gives the same ``vt`` to the bit
+        # (LAPACK's gesdd finds it the same way both ways).
+        _, sv, vt = np.linalg.svd(held, full_matrices=held.shape[0] < held.shape[1])
         top = float(sv[0]) if sv.size else 0.0
         rank = int(np.sum(sv > 1e-10 * max(top, 1e-300)))
         T = T @ vt[rank:].T
     return T[free]
+
+
+def complement_basis(T: NDArray[np.float64]) -> tuple[NDArray[np.float64], int]:
+    """An orthonormal basis of the orthogonal complement of the columns of ``T``.
+
+    Parameters
+    ----------
+    T : ndarray, shape (f, k)
+        Directions (as from :func:`free_similarity_directions`).
+
+    Returns
+    -------
+    Z : ndarray, shape (f, f - rank)
+        Orthonormal columns orthogonal to every column of ``T``: the left
+        singular vectors past its rank (no columns of ``T``: the identity).
+    rank : int
+        The rank of ``T``: its singular values above ``1e-10`` times the largest.
+    """
+    if not T.shape[1]:
+        return np.eye(T.shape[0]), 0
+    U, sv, _ = np.linalg.svd(T, full_matrices=True)
+    rank = int(np.sum(sv > 1e-10 * sv[0])) if sv.size and sv[0] > 0 else 0
+    return U[:, rank:], rank

@@ -39,7 +39,7 @@ from lpvid.data.schedule import range_pairs, scale_grid
 from lpvid.fit.judge import identify_range
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
-from lpvid.model.similarity import free_similarity_directions
+from lpvid.model.similarity import complement_basis, free_similarity_directions
 from lpvid.trust.uncertainty import _lti_index, coefficient_weights, frozen_grams
 
 __all__ = [
@@ -180,13 +180,7 @@ def _pair(model: LpvModel, data: FrfData, fixed: Any, threshold: float) -> _Pair
     nearest = np.argmin(((at[:, None, :] - measured[None, :, :]) ** 2).sum(axis=2), axis=1)
     K_data = frozen_grams(model, data.freqs_hz, data.p, 1.0 / data.sigma**2)
     K_grid = frozen_grams(model, data.freqs_hz, grid, 1.0 / data.sigma[nearest] ** 2)
-    T = free_similarity_directions(model, free)
-    if T.shape[1]:
-        U, sv, _ = np.linalg.svd(T, full_matrices=True)
-        k = int(np.sum(sv > 1e-10 * sv[0])) if sv.size and sv[0] > 0 else 0
-        Z = U[:, k:]
-    else:
-        Z = np.eye(int(free.sum()))
+    Z, _ = complement_basis(free_similarity_directions(model, free))
     P = model.theta.size
 
     def on_z(K: NDArray, w: NDArray) -> NDArray:

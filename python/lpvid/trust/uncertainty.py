@@ -43,7 +43,7 @@ from lpvid.fit.memory import check_covariance
 from lpvid.model._view import model_view
 from lpvid.model.layout import MATRICES, fixed_mask
 from lpvid.model.lpv import LpvModel
-from lpvid.model.similarity import free_similarity_directions
+from lpvid.model.similarity import complement_basis, free_similarity_directions
 
 __all__ = ["Covariance", "covariance", "band_radius", "frozen_grams"]
 
@@ -311,21 +311,18 @@ def pseudo_inverse(
     Returns the pseudo-inverse, its rank, the dimension of ``span(T)`` and
     the number of further directions the rank rule left out.
     """
-    f = jtj.shape[0]
-    if T.shape[1]:
-        U, sv, _ = np.linalg.svd(T, full_matrices=True)
-        k = int(np.sum(sv > 1e-10 * sv[0])) if sv.size and sv[0] > 0 else 0
-        Z = U[:, k:]
-    else:
-        k, Z = 0, np.eye(f)
+    Z, k = complement_basis(T)
     M = Z.T @ jtj @ Z
     M = 0.5 * (M + M.T)
     d = np.sqrt(np.maximum(np.diag(M), 1e-300))
     lam, V = np.linalg.eigh(M / d[:, None] / d[None, :])
     top = float(lam[-1]) if lam.size else 0.0
     keep = lam > max(M.shape[0], 1) * np.finfo(float).eps * top
-    Vk = V[:, keep] / d[:, None]
-    inv = Z @ (Vk / lam[keep]) @ Vk.T @ Z.T
+    # Z Vk diag(1/lam) Vk^T Z^T as W W^T: one product and a symmetric one
+    # (n = 32 4x4's 3600 free parameters: 0.6 s against 1.4 s for the four
+    # products one after the other).
+    W = Z @ (V[:, keep] / d[:, None] / np.sqrt(lam[keep]))
+    inv = W @ W.T
     return 0.5 * (inv + inv.T), int(keep.sum()), k, int((~keep).sum())
 
 
