@@ -209,15 +209,15 @@ def test_continuation_order_follows_a_nearest_neighbour_tree_in_two_parameters()
 
 def test_the_continuation_walks_the_subtrees_below_the_root_apart():
     """Every point once, each subtree below a neighbour of the root in its walking order."""
-    from lpvid.initial.continuation import _branches
+    from lpvid.data.schedule import subtrees
 
     p = np.array([0.3, 0.0, 0.1, 0.4, 0.2])
     order, parent = initial.continuation_order(p, root=2)  # root at p = 0.1
-    assert _branches(order, parent) == [[1], [4, 0, 3]]  # either side, in walking order
-    assert _branches(*initial.continuation_order(p, root=1)) == [[2, 4, 0, 3]]  # an end
+    assert subtrees(order, parent) == [[1], [4, 0, 3]]  # either side, in walking order
+    assert subtrees(*initial.continuation_order(p, root=1)) == [[2, 4, 0, 3]]  # an end
     grid = np.array([[a, b] for a in (0.0, 5.0, 10.0) for b in (0.0, 0.1, 0.2, 0.3)])
     order, parent = initial.continuation_order(grid, root=5)
-    walks = _branches(order, parent)
+    walks = subtrees(order, parent)
     assert sorted(q for w in walks for q in w) == sorted(set(range(12)) - {5})
     assert len(walks) == int(np.sum(parent == 5)) >= 2
     for w in walks:

@@ -44,17 +44,24 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from lpvid import _core
 from lpvid._capture import collected
+from lpvid._threads import single_blas
 
 __all__ = [
     "POLL_S",
     "SMALL_RUN_BYTES",
     "Piece",
     "Spread",
+    "THREAD_FLOPS",
     "check_executor",
     "cores",
     "own_threads",
+    "product",
+    "side_by_side",
     "stop_flag",
     "waited",
 ]
@@ -123,6 +130,65 @@ def own_threads(
         return
     with ThreadPoolExecutor(cores(), thread_name_prefix="lpvid") as pool:
         yield pool
+
+
+#: Work (floating-point operations) of each call from which :func:`side_by_side`
+#: puts the calls on threads: some 50 ms of numpy on one core, against the
+#: start of a thread pool and the calls' wait for each other's Python code.
+THREAD_FLOPS = 1e8
+
+
+def side_by_side(
+    fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]], *, flops: float, need: int
+) -> list[Any]:
+    """``[fn(*args) for args in calls]``: numpy work that does not spread by itself, side by side.
+
+    On threads of this process, one per core, where :func:`own_threads`
+    allows it (the main thread, more than one core, ``need`` bytes for all
+    the calls at once at most :data:`SMALL_RUN_BYTES`) and each call does
+    :data:`THREAD_FLOPS` or more (``flops``); else one after the other.
+    Either way numpy's BLAS runs on one thread (:func:`lpvid._threads.single_blas`),
+    as in a run, so that each call is the same to the last bit wherever it
+    ran; the results come in the order of ``calls``, a failure as
+    :meth:`Spread.map` raises it.
+    """
+
+    @single_blas
+    def run() -> list[Any]:
+        if len(calls) < 2 or flops < THREAD_FLOPS:
+            return [fn(*args) for args in calls]
+        with own_threads(None, need) as pool:
+            return Spread(pool).map(fn, calls)
+
+    return run()
+
+
+#: Columns of each block of :func:`product`.
+PRODUCT_BLOCK = 512
+
+
+def product(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``a @ b`` of numpy arrays, in blocks of :data:`PRODUCT_BLOCK` columns side by side.
+
+    A product of :data:`THREAD_FLOPS` or more per block goes block by block
+    (:func:`side_by_side`: on threads, numpy's BLAS on one each); the blocks'
+    cuts depend on the shape alone, so the result is the same on any
+    number of cores (numpy's BLAS on two threads gave other bits than on
+    one, 2026-11-30). A smaller one is ``a @ b``.
+    """
+    rows, inner = a.shape
+    cols = b.shape[1]
+    flops = 2.0 * rows * inner * min(cols, PRODUCT_BLOCK)
+    if cols <= PRODUCT_BLOCK or flops < THREAD_FLOPS:
+        return a @ b
+    out = np.empty((rows, cols), dtype=np.result_type(a, b))
+
+    def block(first: int) -> None:
+        out[:, first : first + PRODUCT_BLOCK] = a @ b[:, first : first + PRODUCT_BLOCK]
+
+    starts = [(first,) for first in range(0, cols, PRODUCT_BLOCK)]
+    side_by_side(block, starts, flops=flops, need=cores() * 8 * rows * PRODUCT_BLOCK)
+    return out
 
 
 def check_executor(executor: Any) -> Executor | None:

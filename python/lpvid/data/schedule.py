@@ -31,6 +31,7 @@ __all__ = [
     "model_range",
     "propagation_order",
     "range_pairs",
+    "subtrees",
     "scheduling_range",
     "unit_scaled",
 ]
@@ -166,6 +167,23 @@ def propagation_order(
     if N == 1:
         return np.array([0]), np.array([-1])
     return spanning_tree_walk(dist, root)
+
+
+def subtrees(order: NDArray[np.int_], parent: NDArray[np.int_]) -> list[list[int]]:
+    """A walk of :func:`propagation_order` after its root, cut into the subtrees below the root.
+
+    One list per neighbour of the root, each in walking order (a point
+    after its parent): the parts of the walk that depend on the root
+    alone, and not on one another.
+    """
+    root = int(order[0])
+    top: dict[int, int] = {}
+    out: dict[int, list[int]] = {}
+    for q in (int(k) for k in order[1:]):
+        m = int(parent[q])
+        top[q] = q if m == root else top[m]
+        out.setdefault(top[q], []).append(q)
+    return list(out.values())
 
 
 def between_points(p: ArrayLike, steps: int = 8) -> NDArray[np.float64]:

@@ -37,7 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._graphs import assignment
-from lpvid.data.schedule import propagation_order
+from lpvid._spread import cores, side_by_side
+from lpvid.data.schedule import propagation_order, subtrees
 from lpvid.errors import CoherenceError
 from lpvid.model.frozen import stable_poles
 
@@ -338,33 +339,18 @@ def modal_form(
     return out, {"condition": float(worst)}
 
 
-def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, float | int]]:
-    """Sequential least-squares alignment of each model to an aligned neighbour.
+def _align_branch(
+    branch: list[int], models: Sequence[Ss], parent: NDArray[np.int_], root: Ss
+) -> list[tuple[int, Ss, float]]:
+    """:func:`pairwise_form` along one subtree below the root.
 
-    Walking the minimum spanning tree of the points from the centre (see
-    :func:`propagation_order`), model k is transformed with the ``T`` that
-    minimises ``||T A_k - A_m T||^2 / ||A_m||^2 + ||T B_k - B_m||^2 / ||B_m||^2
-    + ||C_k - C_m T||^2 / ||C_m||^2`` for its aligned neighbour m (linear in T).
-
-    Parameters
-    ----------
-    models : sequence of (A, B, C, D)
-    p : ndarray, shape (N, Np)
-
-    Returns
-    -------
-    models : list of (A, B, C, D)
-    notes : dict
-        ``condition``: worst condition number of the transforms,
-        ``reference``: the root point.
-
+    Returns every point of ``branch`` with its aligned model and the
+    condition number of its transform, in walking order.
     """
-    order, parent = propagation_order(p)
-    out: list[Ss | None] = [None] * len(models)
-    out[order[0]] = tuple(x.copy() for x in models[order[0]])  # type: ignore[assignment]
-    worst = 1.0
-    for k in order[1:]:
-        Am, Bm, Cm, _ = out[parent[k]]  # type: ignore[misc]
+    aligned = {int(parent[branch[0]]): root}
+    out = []
+    for k in branch:
+        Am, Bm, Cm, _ = aligned[int(parent[k])]
         Ak, Bk, Ck, _ = models[k]
         n = Ak.shape[0]
         eye = np.eye(n)
@@ -384,6 +370,52 @@ def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, flo
         c = _cond(T)
         if not np.isfinite(c) or c > MAX_COND:
             raise CoherenceError(f"pairwise: the alignment of point {k} is singular")
-        worst = max(worst, c)
-        out[k] = transform(models[k], T)
+        aligned[k] = transform(models[k], T)
+        out.append((k, aligned[k], c))
+    return out
+
+
+def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, float | int]]:
+    """Sequential least-squares alignment of each model to an aligned neighbour.
+
+    Walking the minimum spanning tree of the points from the centre (see
+    :func:`propagation_order`), model k is transformed with the ``T`` that
+    minimises ``||T A_k - A_m T||^2 / ||A_m||^2 + ||T B_k - B_m||^2 / ||B_m||^2
+    + ||C_k - C_m T||^2 / ||C_m||^2`` for its aligned neighbour m (linear in T).
+    The subtrees below the root depend on the root alone and are walked
+    side by side (:func:`lpvid._spread.side_by_side`), with the same result.
+
+    Parameters
+    ----------
+    models : sequence of (A, B, C, D)
+    p : ndarray, shape (N, Np)
+
+    Returns
+    -------
+    models : list of (A, B, C, D)
+    notes : dict
+        ``condition``: worst condition number of the transforms,
+        ``reference``: the root point.
+
+    """
+    order, parent = propagation_order(p)
+    root = int(order[0])
+    out: list[Ss | None] = [None] * len(models)
+    out[root] = tuple(x.copy() for x in models[root])  # type: ignore[assignment]
+    # The subtrees below the root depend on it alone: side by side.
+    n = models[root][0].shape[0]
+    rows = n * n + n * models[root][1].shape[1] + models[root][2].shape[0] * n
+    branches = subtrees(order, parent)
+    longest = max((len(b) for b in branches), default=0)
+    walked = side_by_side(
+        _align_branch,
+        [(branch, models, parent, out[root]) for branch in branches],
+        flops=4.0 * rows * n**4 * longest,
+        need=cores() * 3 * 8 * rows * n * n,
+    )
+    worst = 1.0
+    for aligned in walked:
+        for k, model, c in aligned:
+            out[k] = model
+            worst = max(worst, c)
     return out, {"condition": float(worst), "reference": int(order[0])}  # type: ignore[return-value]

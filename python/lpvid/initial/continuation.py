@@ -9,11 +9,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
-from lpvid._spread import Spread
+from lpvid._spread import Spread, cores, side_by_side
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
-from lpvid.data.schedule import unit_scaled
+from lpvid.data.schedule import subtrees, unit_scaled
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
+from lpvid.fit.memory import covariance_memory
 from lpvid.initial.coherent import propagation_order
 from lpvid.initial.diagnosis import Consistency, consistency
 from lpvid.initial.localmodels import LocalModels
@@ -60,7 +61,15 @@ def best_determined(
     ok = [q for q in range(N) if q not in diag.inconsistent and not local_models.unstable[q]]
     ok = ok or list(range(N))
     ok = [q for q in ok if rel[q] <= np.min(rel[ok]) + tol[q]] or ok
-    spread = {q: _least_certain(local_models, data, q, fixed) for q in ok}
+    # One covariance of a local model each (numpy's), side by side.
+    P = local_models[ok[0]].theta.size
+    values = side_by_side(
+        _least_certain,
+        [(local_models, data, q, fixed) for q in ok],
+        flops=20.0 * P**3,
+        need=cores() * covariance_memory(P, P),
+    )
+    spread = dict(zip(ok, values, strict=True))
     return min(ok, key=lambda q: (spread[q], rel[q]))
 
 
@@ -112,18 +121,6 @@ def continuation_order(p: ArrayLike, root: int) -> tuple[NDArray[np.int_], NDArr
     arr = arr.reshape(arr.shape[0], -1)
     root = positive_int(root, "root", minimum=0)
     return propagation_order(arr, root)
-
-
-def _branches(order: NDArray[np.int_], parent: NDArray[np.int_]) -> list[list[int]]:
-    """The walk after the root, cut into the subtrees of the root's children (each in order)."""
-    root = int(order[0])
-    top: dict[int, int] = {}
-    out: dict[int, list[int]] = {}
-    for q in (int(k) for k in order[1:]):
-        m = int(parent[q])
-        top[q] = q if m == root else top[m]
-        out.setdefault(top[q], []).append(q)
-    return list(out.values())
 
 
 @single_blas
@@ -271,7 +268,7 @@ def continue_local(
     starts = ["plain"] * data.n_points
     initial: list[LpvModel] = list(local.initial) if local.initial is not None else list(local)
     how = (data, local, parent, fixed, tol, max_iter, diag)
-    walks = [(branch, *how) for branch in _branches(order, parent)]
+    walks = [(branch, *how) for branch in subtrees(order, parent)]
     for walked in Spread(executor).map(_walk, walks):
         for q, (model, cost, start) in walked.items():
             models[q], costs[q] = model, cost

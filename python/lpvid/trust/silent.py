@@ -40,7 +40,7 @@ from lpvid.fit.judge import identify_range
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.model.similarity import complement_basis, free_similarity_directions
-from lpvid.trust.uncertainty import _lti_index, coefficient_weights, frozen_grams
+from lpvid.trust.uncertainty import _lti_index, coefficient_weights, frozen_grams, projected
 
 __all__ = [
     "SilentCount",
@@ -188,7 +188,7 @@ def _pair(model: LpvModel, data: FrfData, fixed: Any, threshold: float) -> _Pair
         blocks = np.einsum("mi,muv,mj->iujv", w, K, w, optimize=True)
         full = np.zeros((P, P))
         full[index[:, :, None, None], index[None, None, :, :]] = blocks
-        return Z.T @ full[np.ix_(free, free)] @ Z
+        return projected(full[np.ix_(free, free)], Z)
 
     w_data = coefficient_weights(model, data.p)
     each = np.array([on_z(K_data[m : m + 1], w_data[m : m + 1]) for m in range(data.n_points)])

@@ -1,0 +1,124 @@
+"""numpy work side by side on threads (lpvid._spread): the same results as one after the other.
+
+Each test names the wrong code it rejects. The property that matters is
+that a result does not depend on whether the work ran on threads or one
+piece after the other (on a machine of one core, or called from a thread
+other than the main one), so every test compares the two, bit for bit.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info
+
+import lpvid
+import lpvid.testing
+from lpvid import _spread
+from lpvid.initial.coherent import pairwise_form
+
+
+def _where(k: int) -> tuple[int, str, int]:
+    blas = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    return k, threading.current_thread().name, max(blas)
+
+
+def test_the_calls_go_to_threads_in_order_with_blas_on_one_thread():
+    """Rejects the results taken as they finish, or numpy's BLAS left on every core in a call."""
+    if _spread.cores() < 2:
+        pytest.skip("one core: nothing runs side by side")
+    out = _spread.side_by_side(_where, [(k,) for k in range(6)], flops=1e12, need=0)
+    assert [k for k, _, _ in out] == list(range(6))
+    assert all(name.startswith("lpvid") for _, name, _ in out)  # the own threads
+    assert all(blas == 1 for _, _, blas in out)
+
+
+def test_small_work_runs_here():
+    """Rejects a thread pool started for calls below THREAD_FLOPS (or over the memory budget)."""
+    main = threading.current_thread().name
+    small = _spread.side_by_side(_where, [(0,), (1,)], flops=1e6, need=0)
+    large = _spread.side_by_side(_where, [(0,), (1,)], flops=1e12, need=2**40)
+    assert {name for _, name, _ in small + large} == {main}
+
+
+def test_the_first_failure_in_order_is_raised():
+    """Rejects the failure that came first in time (or none) raised instead."""
+
+    def fail_from_two(k: int) -> int:
+        if k >= 2:
+            raise ValueError(f"call {k}")
+        return k
+
+    with pytest.raises(ValueError, match="^call 2$"):
+        _spread.side_by_side(fail_from_two, [(k,) for k in range(5)], flops=1e12, need=0)
+
+
+@pytest.mark.parametrize("shape", [(300, 200, 1100), (90, 700, 1030)])
+def test_a_product_in_blocks_is_the_same_on_any_number_of_cores(rng, shape, monkeypatch):
+    """Rejects blocks cut by the number of cores, or a block left out or written twice."""
+    rows, inner, cols = shape
+    a = rng.standard_normal((rows, inner))
+    b = rng.standard_normal((inner, cols))
+    monkeypatch.setattr(_spread, "THREAD_FLOPS", 1.0)  # every product goes by blocks
+    threaded = _spread.product(a, b)
+    monkeypatch.setattr(_spread, "cores", lambda: 1)
+    alone = _spread.product(a, b)
+    np.testing.assert_array_equal(threaded, alone)
+    np.testing.assert_allclose(threaded, a @ b, rtol=1e-12, atol=1e-12 * np.abs(a @ b).max())
+    # A transposed view on the left (as the covariance's Z^T H), a product of one block.
+    np.testing.assert_allclose(_spread.product(b.T, b[:, :7]), b.T @ b[:, :7], rtol=1e-12)
+
+
+def _pairwise_in_order(models, p):
+    """The pairwise form as it was before its subtrees went side by side: one walk, in order."""
+    from lpvid.data.schedule import propagation_order
+
+    order, parent = propagation_order(p)
+    out = [None] * len(models)
+    out[order[0]] = models[order[0]]
+    for k in order[1:]:
+        Am, Bm, Cm, _ = out[parent[k]]
+        Ak, Bk, Ck, _ = models[k]
+        n = Ak.shape[0]
+        eye = np.eye(n)
+        wa, wb, wc = (1.0 / np.linalg.norm(x) for x in (Am, Bm, Cm))
+        M = np.concatenate(
+            [
+                wa * (np.kron(Ak.T, eye) - np.kron(eye, Am)),
+                wb * np.kron(Bk.T, eye),
+                wc * np.kron(eye, Cm),
+            ]
+        )
+        rhs = np.concatenate([np.zeros(n * n), wb * Bm.ravel(order="F"), wc * Ck.ravel(order="F")])
+        T = np.linalg.lstsq(M, rhs, rcond=None)[0].reshape(n, n, order="F")
+        Ti = np.linalg.inv(T)
+        out[k] = (T @ Ak @ Ti, T @ Bk, Ck @ Ti, models[k][3])
+    return out
+
+
+def test_the_pairwise_form_is_the_same_walked_side_by_side(rng, monkeypatch):
+    """Rejects a subtree aligned to the wrong neighbour, or its points given to others.
+
+    Against the walk in order (the form as it was), on threads and on one
+    core; 2 x 3 points on a grid give the root two subtrees of two and three.
+    """
+    true = lpvid.testing.synthetic_parametric(6)
+    p = np.array([[a, b] for a in (0.02, 0.5, 1.0) for b in (0.0, 1.0)])
+    models = []
+    for q in p:  # each point in coordinates of its own
+        A, B, C, D = true.at(float(q[0]))
+        T = np.eye(6) + 0.3 * rng.standard_normal((6, 6))
+        Ti = np.linalg.inv(T)
+        models.append((T @ A @ Ti + 0.01 * q[1] * np.eye(6), T @ B, C @ Ti, D))
+    want = _pairwise_in_order(models, p)
+    monkeypatch.setattr(_spread, "THREAD_FLOPS", 1.0)
+    threaded, notes = pairwise_form(models, p)
+    monkeypatch.setattr(_spread, "cores", lambda: 1)
+    alone, notes_alone = pairwise_form(models, p)
+    assert notes == notes_alone
+    for x, y, z in zip(threaded, alone, want, strict=True):
+        for u, v, w in zip(x, y, z, strict=True):
+            np.testing.assert_array_equal(u, v)
+            np.testing.assert_allclose(u, w, rtol=1e-9, atol=1e-12)
