@@ -72,29 +72,33 @@ def test_a_product_in_blocks_is_the_same_on_any_number_of_cores(rng, shape, monk
 
 
 def _pairwise_in_order(models, p):
-    """The pairwise form as it was before its subtrees went side by side: one walk, in order."""
+    """The pairwise form walked in order, its least squares built map by map (no Kronecker).
+
+    Column ``i + j n`` of the system is the residual's change for
+    ``T = E_ij``: ``(E A_k - A_m E) / |A_m|``, ``E B_k / |B_m|``,
+    ``C_m E / |C_m|``, against ``(0, B_m / |B_m|, C_k / |C_m|)``.
+    """
     from lpvid.data.schedule import propagation_order
 
     order, parent = propagation_order(p)
     out = [None] * len(models)
     out[order[0]] = models[order[0]]
     for k in order[1:]:
-        Am, Bm, Cm, _ = out[parent[k]]
-        Ak, Bk, Ck, _ = models[k]
+        (Am, Bm, Cm, _), (Ak, Bk, Ck, Dk) = out[parent[k]], models[k]
         n = Ak.shape[0]
-        eye = np.eye(n)
         wa, wb, wc = (1.0 / np.linalg.norm(x) for x in (Am, Bm, Cm))
-        M = np.concatenate(
-            [
-                wa * (np.kron(Ak.T, eye) - np.kron(eye, Am)),
-                wb * np.kron(Bk.T, eye),
-                wc * np.kron(eye, Cm),
-            ]
-        )
-        rhs = np.concatenate([np.zeros(n * n), wb * Bm.ravel(order="F"), wc * Ck.ravel(order="F")])
-        T = np.linalg.lstsq(M, rhs, rcond=None)[0].reshape(n, n, order="F")
+        columns = []
+        for j in range(n):
+            for i in range(n):
+                E = np.zeros((n, n))
+                E[i, j] = 1.0
+                parts = (wa * (E @ Ak - Am @ E), wb * (E @ Bk), wc * (Cm @ E))
+                columns.append(np.concatenate([x.ravel(order="F") for x in parts]))
+        target = (np.zeros((n, n)), wb * Bm, wc * Ck)
+        rhs = np.concatenate([x.ravel(order="F") for x in target])
+        T = np.linalg.lstsq(np.stack(columns, axis=1), rhs, rcond=None)[0].reshape(n, n, order="F")
         Ti = np.linalg.inv(T)
-        out[k] = (T @ Ak @ Ti, T @ Bk, Ck @ Ti, models[k][3])
+        out[k] = (T @ Ak @ Ti, T @ Bk, Ck @ Ti, Dk)
     return out
 
 
