@@ -29,7 +29,7 @@ def test_the_calls_go_to_threads_in_order_with_blas_on_one_thread():
     """Rejects the results taken as they finish, or numpy's BLAS left on every core in a call."""
     if _spread.cores() < 2:
         pytest.skip("one core: nothing runs side by side")
-    out = _spread.side_by_side(_where, [(k,) for k in range(6)], flops=1e12, need=0)
+    out = _spread.side_by_side(_where, [(k,) for k in range(6)], flops=1e12, each=0)
     assert [k for k, _, _ in out] == list(range(6))
     assert all(name.startswith("lpvid") for _, name, _ in out)  # the own threads
     assert all(blas == 1 for _, _, blas in out)
@@ -38,9 +38,24 @@ def test_the_calls_go_to_threads_in_order_with_blas_on_one_thread():
 def test_small_work_runs_here():
     """Rejects a thread pool started for calls below THREAD_FLOPS (or over the memory budget)."""
     main = threading.current_thread().name
-    small = _spread.side_by_side(_where, [(0,), (1,)], flops=1e6, need=0)
-    large = _spread.side_by_side(_where, [(0,), (1,)], flops=1e12, need=2**40)
+    small = _spread.side_by_side(_where, [(0,), (1,)], flops=1e6, each=0)
+    large = _spread.side_by_side(_where, [(0,), (1,)], flops=1e12, each=2**40)
     assert {name for _, name, _ in small + large} == {main}
+
+
+def test_as_many_threads_as_the_memory_budget_holds(monkeypatch):
+    """Rejects one thread per core where the calls at once would need more than the budget."""
+    monkeypatch.setattr(_spread, "cores", lambda: 8)
+    third = _spread.SMALL_RUN_BYTES // 3
+
+    def name(k: int) -> str:
+        threading.Event().wait(0.05)  # long enough for every thread of the pool to take one
+        return threading.current_thread().name
+
+    names = _spread.side_by_side(name, [(k,) for k in range(12)], flops=1e12, each=third)
+    assert len(set(names)) == 3
+    alone = _spread.side_by_side(name, [(k,) for k in range(4)], flops=1e12, each=2 * third)
+    assert set(alone) == {threading.current_thread().name}
 
 
 def test_the_first_failure_in_order_is_raised():
@@ -52,7 +67,7 @@ def test_the_first_failure_in_order_is_raised():
         return k
 
     with pytest.raises(ValueError, match="^call 2$"):
-        _spread.side_by_side(fail_from_two, [(k,) for k in range(5)], flops=1e12, need=0)
+        _spread.side_by_side(fail_from_two, [(k,) for k in range(5)], flops=1e12, each=0)
 
 
 @pytest.mark.parametrize("shape", [(300, 200, 1100), (90, 700, 1030)])

@@ -105,7 +105,11 @@ SMALL_RUN_BYTES = 256 * 2**20
 
 @contextmanager
 def own_threads(
-    executor: Executor | None, need: int, budget: int = SMALL_RUN_BYTES
+    executor: Executor | None,
+    need: int,
+    budget: int = SMALL_RUN_BYTES,
+    *,
+    threads: int | None = None,
 ) -> Iterator[Executor | None]:
     """``executor``; when None, threads of this process, one per core, for the ``with`` block.
 
@@ -122,13 +126,15 @@ def own_threads(
     work handed out needs, ``budget`` the most it may need: a whole run
     against :data:`SMALL_RUN_BYTES`, or a large run's local models side by
     side (one per core, :func:`lpvid.fit.memory.local_memory` each)
-    against the run's own peak estimate.
+    against the run's own peak estimate. ``threads``: so many threads
+    instead of one per core (:func:`side_by_side`, whose calls at once
+    must fit the budget).
     """
     main = threading.current_thread() is threading.main_thread()
     if executor is not None or not main or cores() < 2 or need > budget:
         yield executor
         return
-    with ThreadPoolExecutor(cores(), thread_name_prefix="lpvid") as pool:
+    with ThreadPoolExecutor(threads or cores(), thread_name_prefix="lpvid") as pool:
         yield pool
 
 
@@ -139,25 +145,26 @@ THREAD_FLOPS = 1e8
 
 
 def side_by_side(
-    fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]], *, flops: float, need: int
+    fn: Callable[..., Any], calls: Sequence[tuple[Any, ...]], *, flops: float, each: int
 ) -> list[Any]:
     """``[fn(*args) for args in calls]``: numpy work that does not spread by itself, side by side.
 
-    On threads of this process, one per core, where :func:`own_threads`
-    allows it (the main thread, more than one core, ``need`` bytes for all
-    the calls at once at most :data:`SMALL_RUN_BYTES`) and each call does
-    :data:`THREAD_FLOPS` or more (``flops``); else one after the other.
-    Either way numpy's BLAS runs on one thread (:func:`lpvid._threads.single_blas`),
-    as in a run, so that each call is the same to the last bit wherever it
-    ran; the results come in the order of ``calls``, a failure as
-    :meth:`Spread.map` raises it.
+    On threads of this process where :func:`own_threads` allows it (the
+    main thread, more than one core), each call doing :data:`THREAD_FLOPS`
+    or more (``flops``): one per core, or fewer, so that the calls at once
+    (``each`` bytes each) need at most :data:`SMALL_RUN_BYTES`; else one
+    after the other. Either way numpy's BLAS runs on one thread
+    (:func:`lpvid._threads.single_blas`), as in a run, so that each call is
+    the same to the last bit wherever it ran; the results come in the
+    order of ``calls``, a failure as :meth:`Spread.map` raises it.
     """
+    threads = min(cores(), len(calls), SMALL_RUN_BYTES // max(each, 1))
 
     @single_blas
     def run() -> list[Any]:
-        if len(calls) < 2 or flops < THREAD_FLOPS:
+        if threads < 2 or flops < THREAD_FLOPS:
             return [fn(*args) for args in calls]
-        with own_threads(None, need) as pool:
+        with own_threads(None, threads * each, threads=threads) as pool:
             return Spread(pool).map(fn, calls)
 
     return run()
@@ -187,7 +194,7 @@ def product(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float6
         out[:, first : first + PRODUCT_BLOCK] = a @ b[:, first : first + PRODUCT_BLOCK]
 
     starts = [(first,) for first in range(0, cols, PRODUCT_BLOCK)]
-    side_by_side(block, starts, flops=flops, need=cores() * 8 * rows * PRODUCT_BLOCK)
+    side_by_side(block, starts, flops=flops, each=8 * rows * PRODUCT_BLOCK)
     return out
 
 

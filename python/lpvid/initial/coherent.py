@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._graphs import assignment
-from lpvid._spread import cores, side_by_side
+from lpvid._spread import side_by_side
 from lpvid.data.schedule import propagation_order, subtrees
 from lpvid.errors import CoherenceError
 from lpvid.model.frozen import stable_poles
@@ -411,7 +411,7 @@ def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, flo
         _align_branch,
         [(branch, models, parent, out[root]) for branch in branches],
         flops=4.0 * rows * n**4 * longest,
-        need=cores() * 3 * 8 * rows * n * n,
+        each=3 * 8 * rows * n * n,
     )
     worst = 1.0
     for aligned in walked:

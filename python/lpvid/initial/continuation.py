@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int, real_array
-from lpvid._spread import Spread, cores, side_by_side
+from lpvid._spread import Spread, side_by_side
 from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import subtrees, unit_scaled
@@ -67,7 +67,7 @@ def best_determined(
         _least_certain,
         [(local_models, data, q, fixed) for q in ok],
         flops=20.0 * P**3,
-        need=cores() * covariance_memory(P, P),
+        each=covariance_memory(P, P),
     )
     spread = dict(zip(ok, values, strict=True))
     return min(ok, key=lambda q: (spread[q], rel[q]))
