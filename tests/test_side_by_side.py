@@ -141,3 +141,27 @@ def test_the_pairwise_form_is_the_same_walked_side_by_side(rng, monkeypatch):
         for u, v, w in zip(x, y, z, strict=True):
             np.testing.assert_array_equal(u, v)
             np.testing.assert_allclose(u, w, rtol=1e-9, atol=1e-12)
+
+
+def test_the_continuation_root_s_pole_uncertainties_are_the_same_side_by_side(monkeypatch):
+    """Rejects a local model's pole uncertainty computed with another BLAS setting on a thread."""
+    from lpvid.initial.continuation import best_determined
+
+    ds = lpvid.datasets.gantry()
+    local = lpvid.identify_lti(ds.identification, ds.order)
+    monkeypatch.setattr(_spread, "THREAD_FLOPS", 1.0)
+
+    def uncertainties() -> tuple[int, dict]:
+        local._derived.clear()
+        root = best_determined(local, ds.identification, fixed={"D": True})
+        kept = {k: v[1] for k, v in local._derived.items() if k[0] == "least certain pole"}
+        return root, kept
+
+    threaded = uncertainties()
+    monkeypatch.setattr(_spread, "cores", lambda: 1)
+    alone = uncertainties()
+    assert threaded[0] == alone[0]
+    assert len(threaded[1]) >= 2
+    assert {k: np.float64(v).tobytes() for k, v in threaded[1].items()} == {
+        k: np.float64(v).tobytes() for k, v in alone[1].items()
+    }
