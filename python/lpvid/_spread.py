@@ -179,9 +179,9 @@ def product(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float6
 
     A product of :data:`THREAD_FLOPS` or more per block goes block by block
     (:func:`side_by_side`: on threads, numpy's BLAS on one each); the blocks'
-    cuts depend on the shape alone, so the result is the same on any
-    number of cores (numpy's BLAS on two threads gave other bits than on
-    one, 2026-11-30). A smaller one is ``a @ b``.
+    cuts depend on the shape alone, so the result does not depend on the
+    number of cores (a product cut into column blocks gave the bits of the
+    whole on one thread, 2026-11-30). A smaller one is ``a @ b``.
     """
     rows, inner = a.shape
     cols = b.shape[1]
