@@ -402,7 +402,6 @@ def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, flo
     root = int(order[0])
     out: list[Ss | None] = [None] * len(models)
     out[root] = tuple(x.copy() for x in models[root])  # type: ignore[assignment]
-    # The subtrees below the root depend on it alone: side by side.
     n = models[root][0].shape[0]
     rows = n * n + n * models[root][1].shape[1] + models[root][2].shape[0] * n
     branches = subtrees(order, parent)
@@ -418,4 +417,4 @@ def pairwise_form(models: Sequence[Ss], p: Arr) -> tuple[list[Ss], dict[str, flo
         for k, model, c in aligned:
             out[k] = model
             worst = max(worst, c)
-    return out, {"condition": float(worst), "reference": int(order[0])}  # type: ignore[return-value]
+    return out, {"condition": float(worst), "reference": root}  # type: ignore[return-value]
