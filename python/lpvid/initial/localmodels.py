@@ -205,6 +205,26 @@ class LocalModels(Sequence[LpvModel]):
     def __iter__(self) -> Iterator[LpvModel]:
         return iter(self._models)
 
+    def subset(self, points: Sequence[int]) -> LocalModels:
+        """The models of some points (in the order given) with their figures.
+
+        The diagnosis (``consistency``) is of the whole set and is not carried.
+        """
+        idx = [int(q) for q in points]
+        for q in idx:
+            if not 0 <= q < len(self):
+                raise ValueError(f"points: expected indices in 0..{len(self) - 1}, got {q}")
+        return LocalModels(
+            [self._models[q] for q in idx],
+            self.p[idx],
+            self.freqs_hz,
+            self.vnls[idx],
+            self.noise_floor[idx],
+            self.converged[idx],
+            None if self.initial is None else [self.initial[q] for q in idx],
+            [self.starts[q] for q in idx],
+        )
+
     @property
     def Ts(self) -> float | None:
         """Sample time of the models (None: continuous time)."""

@@ -63,13 +63,14 @@ from lpvid.data.schedule import between_points
 from lpvid.fit.judge import noise_slack
 from lpvid.initial.blocks import BlockPieces, hand_out_blocks
 from lpvid.initial.candidates import Candidate
+from lpvid.initial.grown import grown_everywhere
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.frozen import frozen_stable
 from lpvid.model.layout import fixed_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.bulge import bulge
-from lpvid.pipeline.misfit import global_everywhere, misfit
+from lpvid.pipeline.misfit import far_fit, global_everywhere, misfit
 from lpvid.pipeline.path import Along
 from lpvid.pipeline.routes import Route, follow
 from lpvid.stable.scan import stability
@@ -225,6 +226,9 @@ def open_routes(
     misfit: the blocks route from every point and the global start
     (``"global:all"``) from every point. Of the extra starts, those within
     the noise of the committee (module notes) are followed through the path.
+    When the chosen model sits far above the local models' level but is no
+    misfit (:func:`lpvid.pipeline.misfit.far_fit`): also starts grown over
+    the points from every point (:mod:`lpvid.initial.grown`).
 
     ``ahead``: the blocks route's fits from its usual start points, handed
     out before ``main`` was followed
@@ -242,21 +246,26 @@ def open_routes(
             return [main], [], None
         count = None if wrong else count_silent(e.model, data, main.fixed, threshold)[0]
         main.counted = count
-        if not wrong and (count is None or count.determined):
+        far = None if wrong else far_fit(e.vnls, e.noise_floor, local)
+        grow = far is not None and data.n_points > len(problem.basis) + 1
+        opens = wrong or (count is not None and not count.determined)
+        if not opens and not grow:
             return [main], [], count
         starts = problem.settings.starts
+        points: Sequence[int] | None = None
         if wrong:
             say(f"misfit: {wrong}; the blocks route and global starts from every point")
-            points: Sequence[int] | None = range(data.n_points)
-        else:
+            points = range(data.n_points)
+        elif opens:
             assert count is not None
             opened = f"the points leave the chosen structure open: {count.describe()}"
             say(f"{opened}; the blocks route too")
-            points = None
-        if ahead is not None and points is not None:
+        if grow:
+            say(f"{far}; starts grown over the points from every point")
+        if ahead is not None and (points is not None or not opens):
             ahead.drop()  # handed out from the usual start points; a misfit starts from every point
             ahead = None
-        if ahead is None:
+        if ahead is None and opens:
             ahead = hand_out_blocks(
                 data,
                 problem.basis,
@@ -268,10 +277,15 @@ def open_routes(
                 ftol=starts.ftol,
                 executor=executor,
             )
-        more = ahead.take()
-        followed = ahead.after  # the routes followed ahead (FollowAhead), by their start's name
+        more = [] if ahead is None else ahead.take()
+        followed = {} if ahead is None else ahead.after  # routes followed ahead, by start name
         if wrong:
             more += global_everywhere(problem, local, executor)
+        if grow:
+            how = (problem.order, problem.basis, problem.fixed, local)
+            more += grown_everywhere(
+                data, *how, max_iter=starts.max_iter, ftol=starts.ftol, executor=executor
+            )
         floor = data.n_residuals
         best = min([e.vnls for e in main.entries] + [c.vnls for c in more])
         limit = max(best, floor) + noise_slack(floor)

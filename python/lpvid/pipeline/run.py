@@ -29,12 +29,13 @@ from lpvid.fit.settings import DEFAULT_GAMMAS, ROUTES, L21Settings, check_gammas
 from lpvid.initial.blocks import BlockPieces, hand_out_blocks
 from lpvid.initial.candidates import candidates_of
 from lpvid.initial.choice import choose
+from lpvid.initial.grown import GROWN
 from lpvid.initial.local import local_models
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.fewpoints import FollowAhead, choose_route, open_between, open_routes
-from lpvid.pipeline.misfit import advice, misfit
+from lpvid.pipeline.misfit import advice, far_fit, misfit
 from lpvid.pipeline.path import Along
 from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
 from lpvid.pipeline.result import IdentifyResult, PathEntry, path_entry
@@ -368,6 +369,9 @@ def _run(
     )
     route = routes[route_index]
     route.say_warnings()
+    grown = any(c.name.startswith(GROWN) for c in more)
+    if grown:
+        reason = f"{reason}; starts grown over the points were tried (lpvid.initial.grown)"
     timings["few_points_s"] = time.perf_counter() - t
     if route_index:
         chosen_start = next(c for c in more if c.name == route.name)
@@ -405,6 +409,13 @@ def _run(
         warnings.warn(
             f"identify: the model returned does not fit within the noise: {wrong}; every "
             f"route was tried ({len(routes)} followed through the path). Try: {advice(local)}",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
+    elif grown and (far := far_fit(final.vnls, final.noise_floor, local)):
+        reason = f"{reason}; still far: {far}"
+        warnings.warn(
+            f"identify: {far}, after starts grown over the points too. Try: {advice(local)}",
             ConvergenceWarning,
             stacklevel=3,
         )
