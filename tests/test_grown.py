@@ -94,6 +94,14 @@ def test_a_far_start_is_judged_against_the_local_models_level(small):
     assert misfit.far_fit(1.1 * ref * floor, floor, local) is None
     said = misfit.far_fit(1.3 * ref * floor, floor, local)
     assert said is not None and "times its noise floor" in said
+    # local models that fit worse raise the level the model is judged against
+    worse = lpvid.LocalModels(
+        list(local), local.p, vnls=1.5 * local.vnls, noise_floor=local.noise_floor
+    )
+    level = misfit.local_level(worse)
+    assert level > 1.2
+    assert misfit.far_fit(1.15 * level * floor, floor, worse) is None
+    assert misfit.far_fit(1.25 * level * floor, floor, worse) is not None
 
 
 def test_identify_grows_starts_only_when_the_best_start_is_far(small, monkeypatch):
