@@ -87,6 +87,17 @@ def test_no_growth_where_the_first_fit_has_every_point(small):
     assert names == [f"grown@{q}" for q in range(5)]
 
 
+def test_a_root_whose_growth_meets_a_point_it_cannot_evaluate_gives_no_start(small, monkeypatch):
+    true, _, data, local = small
+
+    def vnls_value(model, points):  # the model so far overflows at the fourth point to join
+        return np.inf if points.n_points == 4 else lpvid.fit.cost.vnls_value(model, points)
+
+    monkeypatch.setattr(grown, "vnls_value", vnls_value)
+    assert grown_start(data, 2, true.basis, FIXED, local, None, 100, 1e-10, 4) is None
+    assert grown_everywhere(data, 2, true.basis, FIXED, local, ftol=1e-4) == []
+
+
 def test_a_far_start_is_judged_against_the_local_models_level(small):
     _, _, data, local = small
     floor = data.n_residuals

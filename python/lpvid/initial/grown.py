@@ -33,11 +33,14 @@ import time
 from concurrent.futures import Executor
 from typing import Any
 
+import numpy as np
+
 from lpvid._spread import Spread
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
 from lpvid.data.schedule import model_range, propagation_order
+from lpvid.fit.cost import vnls_value
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
 from lpvid.initial.candidates import Candidate, fitted_candidate
 from lpvid.initial.globalstart import constant_start, free_groups
@@ -65,12 +68,14 @@ def grown_everywhere(
     """A grown start from every point (module notes), side by side on ``executor``.
 
     None (an empty list) when the points are no more than the basis
-    functions plus one: the first fit then has every point already.
+    functions plus one: the first fit then has every point already. A root
+    whose growth met a point where its model cannot be evaluated gives none.
     """
     if data.n_points <= len(basis) + 1:
         return []
     how = (data, order, basis, fixed, local, validation, max_iter, ftol)
-    return Spread(executor).map(grown_start, [(*how, q) for q in range(data.n_points)])
+    grown = Spread(executor).map(grown_start, [(*how, q) for q in range(data.n_points)])
+    return [c for c in grown if c is not None]
 
 
 @single_blas
@@ -84,8 +89,12 @@ def grown_start(
     max_iter: int,
     ftol: float,
     root: int,
-) -> Candidate:
-    """The grown start from point ``root`` (module notes), refined on every point."""
+) -> Candidate | None:
+    """The grown start from point ``root`` (module notes), refined on every point.
+
+    None when a point joins where the model so far has no finite V_NLS (a
+    pole on a measured line): no fit can start there.
+    """
     t0 = time.perf_counter()
     walk = [int(q) for q in propagation_order(data.p_rows, root)[0]]
     first = len(basis) + 1
@@ -110,9 +119,12 @@ def grown_start(
     have = seed
     for q in walk[first:]:
         have = sorted([*have, q])
+        points = data.subset(have)
+        if not np.isfinite(vnls_value(model, points)):
+            return None
         start = model
         fit = raise_if_interrupted(
-            fit_nls(model, data.subset(have), fixed, max_iter=max_iter, ftol=ftol, warn=False)
+            fit_nls(model, points, fixed, max_iter=max_iter, ftol=ftol, warn=False)
         )
         model = fit.model
     note = (
