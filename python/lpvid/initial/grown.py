@@ -67,9 +67,9 @@ def grown_everywhere(
 ) -> list[Candidate]:
     """A grown start from every point (module notes), side by side on ``executor``.
 
-    None (an empty list) when the points are no more than the basis
+    None at all (an empty list) when the points are no more than the basis
     functions plus one: the first fit then has every point already. A root
-    whose growth met a point where its model cannot be evaluated gives none.
+    whose walk meets a point where its model cannot be evaluated gives none.
     """
     if data.n_points <= len(basis) + 1:
         return []
