@@ -131,8 +131,6 @@ def grown_start(
         f"constant model from local model {root} fitted at points {seed} with every group "
         f"freed, then refitted as points {walk[first:]} joined one at a time"
     )
-    name = f"{GROWN}{root}"
-    start.info["candidate"] = name
     return fitted_candidate(
-        name, fit, start, data, validation, seconds=time.perf_counter() - t0, note=note
+        f"{GROWN}{root}", fit, start, data, validation, seconds=time.perf_counter() - t0, note=note
     )
