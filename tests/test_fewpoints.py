@@ -19,6 +19,7 @@ import lpvid
 from lpvid.pipeline import fewpoints, misfit
 from lpvid.pipeline.between import Between, Member
 from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
+from lpvid.trust.silent import range_grid
 
 TRUE = synthetic_parametric(10)
 FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
@@ -53,6 +54,22 @@ def test_the_consensus_is_the_member_nearest_the_others():
     D = fewpoints.distances([m.model for m in members], data)
     assert np.allclose(D, D.T) and np.all(np.diag(D) == 0)
     assert D[0, 3] > 3 * D[0, 1]
+
+
+def test_the_distances_are_those_of_each_pair_over_the_range():
+    # every pair against its own evaluation, the models' FRFs on the range's grid
+    data = _data([0.02, 0.5, 1.0])
+    models = [_shifted(TRUE, s) for s in (1.0, 1.01, 0.97, 1.2, 0.9)]
+    D = fewpoints.distances(models, data)
+    grid = range_grid(models[0], data)
+    G = [m.frf(data.freqs_hz, grid).reshape(len(grid), -1) for m in models]
+    scale = np.mean([np.linalg.norm(g, axis=1) for g in G], axis=0)
+    for a, ga in enumerate(G):
+        for b, gb in enumerate(G):
+            want = np.max(np.linalg.norm(ga - gb, axis=1) / scale)
+            assert D[a, b] == pytest.approx(want, rel=1e-12, abs=0.0)
+    assert np.array_equal(D, D.T)  # to the last bit: a tie is decided the same from either side
+    assert fewpoints.distances(models[:1], data).shape == (1, 1)
 
 
 def test_unstable_members_leave_the_consensus_when_stable_ones_exist():
