@@ -128,9 +128,8 @@ def distances(models: Sequence[LpvModel], data: FrfData) -> NDArray[np.float64]:
     G = np.array([m.frf(data.freqs_hz, grid).reshape(len(grid), -1) for m in models])
     scale = np.mean(np.linalg.norm(G, axis=2), axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    # Row by row, each pair once: the (K, K, grid, lines) difference of all
-    # pairs at once took 3 to 15 times as long (memory; 2 to 30 models).
-    # ||G_b - G_a|| is ||G_a - G_b|| to the last bit (negation is exact).
+    # Each pair once (all at once, a (K, K, grid, lines) array, took 3-15 times
+    # as long for 2-30 models); ||G_b - G_a|| is ||G_a - G_b|| to the last bit.
     out = np.zeros((len(models), len(models)))
     for a in range(len(models) - 1):
         d = (np.linalg.norm(G[a + 1 :] - G[a], axis=2) / scale).max(axis=1)
