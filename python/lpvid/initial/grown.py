@@ -99,8 +99,9 @@ def grown_start(
     walk = [int(q) for q in propagation_order(data.p_rows, root)[0]]
     first = len(basis) + 1
     seed = sorted(walk[:first])
+    seeded = data.subset(seed)
     const = constant_start(
-        data.subset(seed),
+        seeded,
         order,
         basis,
         fixed,
@@ -109,9 +110,7 @@ def grown_start(
         max_iter=max_iter,
         ftol=ftol,
     )
-    _, fit, start = free_groups(
-        const, data.subset(seed), fixed, "all", max_iter=max_iter, ftol=ftol
-    )
+    _, fit, start = free_groups(const, seeded, fixed, "all", max_iter=max_iter, ftol=ftol)
     # the seed's model knows the seed's range only: the whole data's from here on
     model = LpvModel(
         *fit.model.matrices().values(), basis=basis, Ts=data.Ts, p_range=model_range(data.p)
