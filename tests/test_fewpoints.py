@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import lpvid
-from lpvid.pipeline import fewpoints, misfit
+from lpvid.pipeline import fewpoints, misfit, opening
 from lpvid.pipeline.between import Between, Member
 from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
 from lpvid.trust.silent import range_grid
@@ -244,7 +244,7 @@ def test_routes_open_only_when_the_points_leave_the_choice_open(points, opened):
     problem = lpvid.Problem(data, 10, TRUE.basis, fixed=FIXED)
     local = lpvid.identify_lti(data, 10, strictly_proper=True)
     followed = []
-    routes, more, count = fewpoints.open_routes(
+    routes, more, count = opening.open_routes(
         problem, _route_of(TRUE, data), local, lambda c: followed.append(c.name), lambda m: None
     )
     assert count.determined is not opened
@@ -343,7 +343,8 @@ def test_no_model_is_counted_twice_in_a_run(monkeypatch):
         counted.append(model.theta.tobytes())
         return real(model, *args, **kwargs)
 
-    monkeypatch.setattr(fewpoints, "count_silent", counting)
+    for module in (fewpoints, opening):  # where the routes are opened, and where chosen
+        monkeypatch.setattr(module, "count_silent", counting)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
         res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
@@ -371,12 +372,12 @@ def test_the_routes_followed_ahead_are_those_open_routes_may_follow(monkeypatch)
         counted.append((model, threshold))
         return f"count of {model}", ""
 
-    monkeypatch.setattr(fewpoints, "follow", follow)
-    monkeypatch.setattr(fewpoints, "count_silent", count_silent)
+    monkeypatch.setattr(opening, "follow", follow)
+    monkeypatch.setattr(opening, "count_silent", count_silent)
     data = SimpleNamespace(n_residuals=100)
     slack = noise_slack(100)
     along = Along(None, 0.05, None, None, False, None, print, executor=object())
-    ahead = fewpoints.FollowAhead(data, (0.1, 0.01), along, 1e-6)
+    ahead = opening.FollowAhead(data, (0.1, 0.01), along, 1e-6)
     for least, inside, outside in (
         (90.0, 100 + slack - 1, 100 + slack + 1),
         (200.0, 200 + slack - 1, 200 + slack + 1),

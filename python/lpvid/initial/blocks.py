@@ -261,7 +261,7 @@ def hand_out_blocks(
     candidates the same either way. ``.take()`` waits for them;
     :func:`lpvid.identify` hands them out before its main path, whose
     outcome decides whether it takes them or drops them
-    (:func:`lpvid.pipeline.fewpoints.open_routes`). ``after``: run in each
+    (:func:`lpvid.pipeline.opening.open_routes`). ``after``: run in each
     piece on its candidates once fitted (the work likely wanted next, done
     where the piece runs); what it returns is merged into
     :attr:`BlockPieces.after` when taken.

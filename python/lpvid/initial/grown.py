@@ -9,7 +9,7 @@ draw 20, its fifth added point) every start of
 :func:`lpvid.initial_candidates` ended at 1.40 times the noise floor (the
 truth: 1.00) and the model returned was 0.033 off between the points;
 the start grown from ``p = 0`` ended at 0.94 of the floor, and the model
-from it 0.0067 off. :func:`lpvid.pipeline.fewpoints.open_routes` grows them
+from it 0.0067 off. :func:`lpvid.pipeline.opening.open_routes` grows them
 when the chosen model sits far above the local models
 (:data:`lpvid.pipeline.misfit.FAR`).
 

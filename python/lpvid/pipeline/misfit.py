@@ -8,7 +8,7 @@ find the fit the data hold (a start in the wrong basin, a structure the
 points do not support), or, on validation data, does not hold between the
 points. :func:`lpvid.identify` then tries harder (the blocks route from
 every point and global starts from every point, :func:`global_everywhere`;
-see :func:`lpvid.pipeline.fewpoints.open_routes`) and, when the model returned
+see :func:`lpvid.pipeline.opening.open_routes`) and, when the model returned
 is still that far, warns with the figures and what to try; its summary
 says so.
 """
@@ -38,7 +38,7 @@ MISFIT = 2.0
 #: Without validation data, a chosen model whose V_NLS is more than this
 #: many times the larger of its noise floor and the local models' total
 #: (but no misfit) may come from a start in another basin than the data's fit:
-#: :func:`lpvid.pipeline.fewpoints.open_routes` then grows starts over the
+#: :func:`lpvid.pipeline.opening.open_routes` then grows starts over the
 #: points (:mod:`lpvid.initial.grown`) and follows those within the noise.
 #: The models returned on ``bench_few.py``'s draws 0-39 (the synthetic
 #: system and ``one_group_lpv`` at 3-6 points) sat at most 1.10 times above

@@ -4,7 +4,8 @@
 refined start and chooses an entry on it (:func:`path_choice`). The
 pipeline follows the chosen start's route; when the measured points leave
 the chosen structure open it follows other routes too
-(:mod:`lpvid.pipeline.fewpoints`).
+(:mod:`lpvid.pipeline.opening`), and :func:`count_silent` counts the
+directions a route's choice leaves open (:mod:`lpvid.trust.silent`).
 """
 
 from __future__ import annotations
@@ -20,12 +21,14 @@ from lpvid._capture import collected
 from lpvid.data.frf import FrfData
 from lpvid.fit.judge import noise_slack, tied
 from lpvid.fit.results import FitResult, L21Result
+from lpvid.model.layout import fixed_mask
+from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.path import Along, run_path
 from lpvid.pipeline.result import PathEntry
-from lpvid.trust.silent import SilentCount
+from lpvid.trust.silent import SilentCount, silent_directions
 from lpvid.trust.steps import stable_fit
 
-__all__ = ["Route", "follow", "knee", "path_choice"]
+__all__ = ["MAX_COUNTED", "Route", "count_silent", "follow", "knee", "path_choice"]
 
 
 @dataclass
@@ -54,7 +57,7 @@ class Route:
         route returned says it, :meth:`say_warnings`).
     counted : SilentCount or None
         The count of the chosen entry's structure
-        (:func:`lpvid.pipeline.fewpoints.count_silent`), once made.
+        (:func:`count_silent`), once made.
     """
 
     name: str
@@ -151,3 +154,20 @@ def path_choice(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
         f"the simplest model whose validation V_NLS ({vals[k]:.5g}) is within "
         f"{tolerance:.0%} of the best on the path ({best:.5g})"
     )
+
+
+#: Free parameters beyond which the silent directions are not counted (the
+#: count takes dense eigendecompositions of about that size).
+MAX_COUNTED = 2500
+
+
+def count_silent(
+    model: LpvModel, data: FrfData, fixed: Any, threshold: float, time_cost: Any = None
+) -> tuple[SilentCount | None, str]:
+    """:func:`lpvid.trust.silent.silent_directions`, or None and why it was not counted."""
+    if time_cost is not None:
+        return None, "the time records see the model between the points"
+    free = int((~fixed_mask(model, fixed)).sum())
+    if free > MAX_COUNTED:
+        return None, f"{free} free parameters, more than {MAX_COUNTED} (the count is dense)"
+    return silent_directions(model, data, fixed, threshold=threshold), ""

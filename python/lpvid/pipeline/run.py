@@ -34,7 +34,8 @@ from lpvid.initial.local import local_models
 from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.bulge import bulge
-from lpvid.pipeline.fewpoints import FollowAhead, choose_route, open_between, open_routes
+from lpvid.pipeline.fewpoints import choose_route, open_between
+from lpvid.pipeline.opening import FollowAhead, open_routes
 from lpvid.pipeline.misfit import advice, far_fit, misfit
 from lpvid.pipeline.path import Along
 from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
@@ -463,11 +464,11 @@ def _blocks_ahead(
     """The blocks route's fits handed out before the main path, when it may need them.
 
     Without validation data or time records,
-    :func:`lpvid.pipeline.fewpoints.open_routes` takes them when the points
+    :func:`lpvid.pipeline.opening.open_routes` takes them when the points
     leave the main path's structure open; the executor's threads fit them
     while the main path runs (a small run's fits take one core each), and
     then follow the paths of those it may follow
-    (:class:`lpvid.pipeline.fewpoints.FollowAhead`; ``along`` and
+    (:class:`lpvid.pipeline.opening.FollowAhead`; ``along`` and
     ``gammas`` the main path's). The same fits and paths either way: only
     when they run changes. None without an executor, or when only a misfit
     could open the routes.
