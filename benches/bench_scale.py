@@ -4,9 +4,12 @@ Each rung is a lightly damped flexible system whose mode frequencies and
 shapes move with the scheduling parameter, measured as noisy FRFs (40 dB,
 known sigma) at N points with validation data between them, and identified
 with ``lpvid.identify(data, n, basis, validation=...)`` as a user runs it.
-For every rung it prints the time of every identify stage, the mean LM
-iteration and cone step (with its solver's iterations: Newton's method's,
-or Clarabel's interior-point iterations where Newton's method gave up), the
+For every rung it prints the time of identify and of its every stage, the
+process's CPU seconds (every thread's; the cores they make on average, and
+the time with every core busy throughout: a floor more overlap cannot
+beat), the mean LM iteration and cone step (with its solver's iterations:
+Newton's method's, or Clarabel's interior-point iterations where Newton's
+method gave up), the
 number of steps, the chosen model's V_NLS and validation V_NLS against their
 noise floors and the groups kept, and the peak memory of the process beside
 what it held before identify and lpvid's estimate of identify's peak
@@ -38,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import lpvid
+from lpvid._spread import cores
 
 
 @dataclass(frozen=True)
@@ -171,7 +175,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
     settings = None if cone_tol is None else lpvid.L21Settings(max_outer=10, cone_tol=cone_tol)
     before_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     estimate_mb = lpvid.fit.memory.pipeline_memory(data, n, basis)[0] / 2**20
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
 
     def say(message: str) -> None:
         print(f"[{time.perf_counter() - t0:8.1f} s] {message}", file=sys.stderr, flush=True)
@@ -186,7 +190,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
             settings=settings,
             progress=say if progress else None,
         )
-    total = time.perf_counter() - t0
+    total, cpu = time.perf_counter() - t0, time.process_time() - c0
     lm = [row for c in result.candidates if c.fit for row in c.fit.history]
     socp = [row for r in result.path for row in r.history]
     e = result.entry
@@ -195,6 +199,7 @@ def run_one(name: str | Rung, cone_tol: float | None = None, progress: bool = Fa
         "note": note,
         "free": int(lpvid.free_mask(result.model).sum()),
         "identify_s": total,
+        "cpu_s": cpu,
         "timings": result.timings,
         "lm_steps": len(lm),
         "lm_iter_s": statistics.mean(r["seconds"] for r in lm) if lm else float("nan"),
@@ -224,6 +229,7 @@ def report(runs: list[dict]) -> None:
         k: statistics.median(r[k] for r in runs)
         for k in (
             "identify_s",
+            "cpu_s",
             "lm_iter_s",
             "cone_step_s",
             "ip_iterations",
@@ -239,7 +245,8 @@ def report(runs: list[dict]) -> None:
     print(
         f"identify {med['identify_s']:.2f} s (median of {len(runs)}: "
         + ", ".join(f"{r['identify_s']:.2f}" for r in runs)
-        + ")"
+        + f"); CPU {med['cpu_s']:.2f} s (every thread: {med['cpu_s'] / med['identify_s']:.2f} of "
+        f"{cores()} cores; with every core busy throughout {med['cpu_s'] / cores():.2f} s)"
     )
     print("stages: " + ", ".join(f"{k} {v:.2f}" for k, v in stages.items()))
     print(

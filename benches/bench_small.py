@@ -9,7 +9,11 @@ data; ``lpvid.identify`` with ``Polynomial(2)`` and D fixed.
 Printed: the median seconds of ``identify`` over ``--repeat`` runs (after
 one run that is not counted: imports and first calls), the median of every
 stage of :attr:`lpvid.IdentifyResult.timings`, and the worst relative FRF
-error at 20 unseen values against the truth. Then, when scikit-rf is
+error at 20 unseen values against the truth; then the process's CPU
+seconds per run (every thread's, :func:`time.process_time`), the cores
+that makes on average, and the time the run would take with every core
+busy throughout (the CPU seconds over the cores: a floor that more
+overlap cannot beat). Then, when scikit-rf is
 installed (it is no dependency of lpvid: ``pip install scikit-rf``),
 ``skrf.vectorFitting.VectorFittingParametric`` on the same data, with the
 order it finds itself and with five complex pole pairs (the truth's order),
@@ -33,6 +37,7 @@ import numpy as np
 from bench_few import CASES, unseen
 
 import lpvid
+from lpvid._spread import cores
 from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
 
 FREQS_HZ = np.logspace(0.5, 3.5, 200) / (2 * np.pi)
@@ -54,21 +59,27 @@ def time_lpvid(true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int) -> None:
     for k in range(repeat + 1):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             res = lpvid.identify(data, 10, true.basis, fixed={"D": True})
-            seconds = time.perf_counter() - t
+            seconds, cpu = time.perf_counter() - t, time.process_time() - c
         if k:
-            runs.append((seconds, res.timings))
+            runs.append((seconds, res.timings, cpu))
     at = unseen(CASES["mor"], *map(np.atleast_1d, true.p_range))
     err = worst_relative_error(res.model, true, FREQS_HZ, at)
     print(
-        f"lpvid.identify: median {statistics.median(s for s, _ in runs):.3f} s over {repeat} "
+        f"lpvid.identify: median {statistics.median(s for s, _, _ in runs):.3f} s over {repeat} "
         f"runs; start {res.start}, {res.model.group_norms().count()} groups; worst relative "
         f"error at 20 unseen values {err:.3g}"
     )
     for stage in runs[0][1]:
-        values = [t[stage] for _, t in runs if stage in t]
+        values = [t[stage] for _, t, _ in runs if stage in t]
         print(f"  {stage:>14}: {statistics.median(values):.3f} s")
+    cpu = statistics.median(c for _, _, c in runs)
+    used = statistics.median(c / s for s, _, c in runs)
+    print(
+        f"  CPU {cpu:.3f} s per run (every thread), {used:.2f} of {cores()} cores on average; "
+        f"with every core busy throughout: {cpu / cores():.3f} s"
+    )
 
 
 def time_skrf(true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int) -> None:
