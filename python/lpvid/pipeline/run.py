@@ -35,8 +35,8 @@ from lpvid.initial.localmodels import LocalModels
 from lpvid.model.layout import strictly_proper
 from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.fewpoints import choose_route, open_between
-from lpvid.pipeline.opening import FollowAhead, open_routes
 from lpvid.pipeline.misfit import advice, far_fit, misfit
+from lpvid.pipeline.opening import FollowAhead, open_routes
 from lpvid.pipeline.path import Along
 from lpvid.pipeline.problem import IdentifyArguments, Problem, check_validation
 from lpvid.pipeline.result import IdentifyResult, PathEntry, path_entry
