@@ -148,3 +148,14 @@ def same_sample_time(a: float | None, b: float | None) -> bool:
     # numpy.isclose's rule (atol 0) on two floats, without its array set-up
     # (11 us a call, 164 calls in a gantry identify).
     return bool(a == b or abs(a - b) <= 1e-12 * abs(b))
+
+
+def generator(seed: Any, name: str = "seed") -> np.random.Generator:
+    """``np.random.default_rng(seed)``, or a TypeError naming ``name`` that says what it takes."""
+    try:
+        return np.random.default_rng(seed)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(
+            f"{name}: expected None, an int (or sequence of ints) or a numpy Generator, "
+            f"got {seed!r} ({exc})"
+        ) from exc

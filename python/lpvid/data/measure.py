@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from lpvid._checks import positive_float, positive_int, real_array
+from lpvid._checks import generator, positive_float, positive_int, real_array
 from lpvid.data.frf import FrfData
 
 __all__ = ["Multisine", "multisine", "estimate_frf"]
@@ -203,13 +203,7 @@ def multisine(
             f"band_hz: ({lo:g}, {hi:g}) Hz holds no excitable line of the {grid} grid "
             f"(resolution fs/period = {res:g} Hz, DC and Nyquist excluded)"
         )
-    try:
-        rng = np.random.default_rng(seed)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(
-            f"seed: expected None, an int (or sequence of ints) or a numpy Generator, "
-            f"got {seed!r} ({exc})"
-        ) from exc
+    rng = generator(seed)
     phases = rng.uniform(0.0, 2.0 * np.pi, size=(r, lines.size))
     idx = np.arange(r)
     pattern = np.exp(-2j * np.pi * np.outer(idx, idx) / r)  # T[i, e]
