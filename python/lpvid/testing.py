@@ -25,6 +25,7 @@ from lpvid._checks import positive_float, positive_int, real_array
 from lpvid._rod import diffusion_rod  # a heat rod whose conductivity spans decades
 from lpvid.data.basis import Polynomial
 from lpvid.data.frf import FrfData
+from lpvid.data.noise import circular_noise
 from lpvid.model.lpv import LpvModel
 
 __all__ = [
@@ -435,8 +436,7 @@ def noisy_data(
     level = positive_float(rel_noise, "rel_noise")
     G = direct_frf(model, freqs_hz, p)
     sigma = level * (0.5 + gen.random(G.shape)) * (np.abs(G) + 0.1)
-    noise = sigma * (gen.normal(size=G.shape) + 1j * gen.normal(size=G.shape)) / np.sqrt(2)
-    return FrfData(p, freqs_hz, G + noise, sigma, Ts=model.Ts)
+    return FrfData(p, freqs_hz, G + circular_noise(sigma, gen), sigma, Ts=model.Ts)
 
 
 def worst_relative_error(
