@@ -25,8 +25,12 @@ actual worst error). The summary line of each (case, N) gives the median,
 90 % quantile and worst error, how many draws are above 0.02, how many
 models sit more than twice their noise floor, and the median seconds.
 
+With ``--resample B``, every draw's result is also resampled
+(:func:`lpvid.resampled`, B runs on data simulated from the model returned)
+and the same coverage and spread over error are given for its spread.
+
 Run: python benches/bench_few.py [--cases mor onegroup cross2] [--points 3 4 5 6]
-     [--draws 20] [--first 0] [--json out.json] [--dump out.pkl]
+     [--draws 20] [--first 0] [--json out.json] [--dump out.pkl] [--resample 5]
 """
 
 from __future__ import annotations
@@ -124,9 +128,18 @@ def measured(case: Case, n_points: int, draw: int):
 
 
 def run(
-    name: str, n_points: int, draws: int, dump: list | None = None, first: int = 0
+    name: str,
+    n_points: int,
+    draws: int,
+    dump: list | None = None,
+    first: int = 0,
+    resample: int = 0,
 ) -> list[dict[str, float]]:
-    """Draws ``first`` to ``first + draws - 1`` of one case at one number of points."""
+    """Draws ``first`` to ``first + draws - 1`` of one case at one number of points.
+
+    With ``resample``, also the spread of :func:`lpvid.resampled` with so
+    many runs (its coverage and its worst over the actual worst error).
+    """
     case = CASES[name]
     rows = []
     for draw in range(first, first + draws):
@@ -139,6 +152,12 @@ def run(
         at = unseen(case, lo, hi)
         err = worst_relative_error(res.model, true, case.freqs_hz, at)
         inside, ratio = coverage(res, true, case.freqs_hz, at)
+        again_inside = again_ratio = float("nan")
+        if resample:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                again = lpvid.resampled(res, resample)
+            again_inside, again_ratio = coverage(again, true, case.freqs_hz, at)
         between = getattr(res, "between", None)
         count = getattr(between, "count", None)
         silent = float("nan") if count is None else count.silent
@@ -170,6 +189,8 @@ def run(
             "groups": res.entry.n_groups,
             "coverage": inside,
             "spread_over_error": ratio,
+            "coverage_resampled": again_inside,
+            "spread_over_error_resampled": again_ratio,
             "silent": float(silent),
             "seconds": seconds,
             "warnings": len(caught),
@@ -178,7 +199,13 @@ def run(
         print(
             f"  {name} N={n_points} draw {draw}: error {err:.3g}, V/floor {row['ratio']:.3f}, "
             f"{row['groups']} groups, start {res.start}, silent {silent}, coverage {inside:.2f}, "
-            f"spread/error {ratio:.3g}, {seconds:.1f} s, {len(caught)} warning(s); p {where}",
+            f"spread/error {ratio:.3g}"
+            + (
+                f" (resampled: coverage {again_inside:.2f}, spread/error {again_ratio:.3g})"
+                if resample
+                else ""
+            )
+            + f", {seconds:.1f} s, {len(caught)} warning(s); p {where}",
             flush=True,
         )
         rows.append(row)
@@ -190,20 +217,25 @@ def summary(name: str, n_points: int, rows: list[dict[str, float]]) -> str:
     e = np.array([r["error"] for r in rows])
     misfits = sum(r["ratio"] > 2 for r in rows)
     seconds = statistics.median(r["seconds"] for r in rows)
-    cov = [r["coverage"] for r in rows if np.isfinite(r["coverage"])]
-    ratio = [r["spread_over_error"] for r in rows if np.isfinite(r["spread_over_error"])]
     line = (
         f"## {name} N={n_points}: median {np.median(e):.3g}, 90 % {np.quantile(e, 0.9):.3g}, "
         f"worst {e.max():.3g}, above 0.02 {int(np.sum(e > 0.02))}/{e.size}, "
         f"V/floor > 2 {misfits}/{e.size}, median {seconds:.2f} s"
     )
-    if cov:
-        within = np.mean([(r >= 1) and (r <= 10) for r in ratio]) if ratio else float("nan")
-        covered = np.mean(np.array(cov) >= 0.9)
-        line += (
-            f"; coverage median {np.median(cov):.2f} (>= 0.9 in {covered:.0%}),"
-            f" spread/error median {np.median(ratio):.3g}, in [1, 10] in {within:.0%}"
-        )
+    for label, key in (("", ""), ("resampled: ", "_resampled")):
+        cov = [r[f"coverage{key}"] for r in rows if np.isfinite(r.get(f"coverage{key}", np.nan))]
+        ratio = [
+            r[f"spread_over_error{key}"]
+            for r in rows
+            if np.isfinite(r.get(f"spread_over_error{key}", np.nan))
+        ]
+        if cov:
+            within = np.mean([(r >= 1) and (r <= 10) for r in ratio]) if ratio else float("nan")
+            covered = np.mean(np.array(cov) >= 0.9)
+            line += (
+                f"; {label}coverage median {np.median(cov):.2f} (>= 0.9 in {covered:.0%}),"
+                f" spread/error median {np.median(ratio):.3g}, in [1, 10] in {within:.0%}"
+            )
     return line
 
 
@@ -216,13 +248,16 @@ def main() -> None:
     parser.add_argument("--first", type=int, default=0, help="the first draw")
     parser.add_argument("--json", default=None, help="write every row to this file")
     parser.add_argument("--dump", default=None, help="pickle the FRFs at the unseen points here")
+    parser.add_argument(
+        "--resample", type=int, default=0, help="also lpvid.resampled with so many runs"
+    )
     args = parser.parse_args()
     out: dict[str, list[dict[str, float]]] = {}
     dump: list | None = [] if args.dump else None
     lines = []
     for name in args.cases:
         for n_points in args.points or CASES[name].default_points:
-            rows = run(name, n_points, args.draws, dump, args.first)
+            rows = run(name, n_points, args.draws, dump, args.first, args.resample)
             out[f"{name} N={n_points}"] = rows
             lines.append(summary(name, n_points, rows))
             print(lines[-1], flush=True)

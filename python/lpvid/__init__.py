@@ -52,6 +52,7 @@ from lpvid.model.layout import fixed_mask, free_mask
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between
 from lpvid.pipeline.problem import Problem
+from lpvid.pipeline.resample import resampled
 from lpvid.pipeline.result import IdentifyResult
 from lpvid.pipeline.run import identify
 from lpvid.selection.grid import select
@@ -125,6 +126,7 @@ __all__ = [
     "max_rate",
     "multisine",
     "next_points",
+    "resampled",
     "order_hints",
     "plots",
     "rate_stability",

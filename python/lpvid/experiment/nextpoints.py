@@ -45,7 +45,8 @@ the directions the data determine: directions the measured points leave
 open (:mod:`lpvid.trust.silent`) count as known here. When the points
 leave the model's structure open, :func:`lpvid.identify` keeps the other
 fits within the noise (:attr:`lpvid.IdentifyResult.between`), and where
-they disagree is where the data are silent. Then the criterion is the
+they disagree is where the data are silent (:func:`lpvid.resampled` adds
+the models of runs on simulated data, and its spread). Then the criterion is the
 *committee's*: ``s(p) = ||spread(p)|| / ||G_m(p)||``, the relative spread
 of :meth:`lpvid.pipeline.between.Between.spread` over the grid, and a
 measurement at ``c`` is taken to settle it around ``c``: ``s(p)`` becomes
@@ -311,7 +312,7 @@ def suggest_points(
             f"k: {k} point(s) asked for, but only {len(cands)} candidate(s) are not measured yet"
         )
     between = getattr(result, "between", None)
-    if between is not None and between.members:
+    if between is not None and (between.members or between.resampled):
         return _by_committee(result, between, cands, grid, pairs, scales, k)
     index = _lti_index(model)
     f = data.freqs_hz

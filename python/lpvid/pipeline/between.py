@@ -30,6 +30,12 @@ Two things, both in :class:`Between`:
   the actual error in 6 more draws of each set, and covered the truth at
   nine in ten lines and points in 1 and 2 fewer; ``crossing_lpv(2)`` at
   six to eight points the same.)
+
+:func:`lpvid.resampled` replaces that spread by one that measures the
+pipeline itself: the models of runs of :func:`lpvid.identify` on data
+simulated from the returned model (:attr:`Between.resampled`), the spread
+:data:`RESAMPLED_SCALE` times their median distance from it
+(:mod:`lpvid.pipeline.resample`).
 """
 
 from __future__ import annotations
@@ -47,7 +53,18 @@ from lpvid.trust.profile import BandCheck, checked_band
 from lpvid.trust.silent import SilentCount, openness, range_grid
 from lpvid.trust.uncertainty import Covariance, band_radius
 
-__all__ = ["Between", "Member"]
+__all__ = ["RESAMPLED_SCALE", "Between", "Member"]
+
+#: The spread from resampling (:attr:`Between.resampled`) is this many times
+#: the resampled models' median distance from the model returned, entry by
+#: entry: about the 95 % point of a distance whose median is measured (2.1
+#: times the median for a circular complex Gaussian, 2.9 for a real one),
+#: with room for what the resampling does not see (its models are found
+#: around the model returned, not around the truth). Measured on
+#: ``benches/bench_few.py`` (``docs/fewpoints.md``): 2 left the truth
+#: outside at a tenth of the lines and points in up to half the draws, 4
+#: put the spread beyond ten times the actual error in more of them.
+RESAMPLED_SCALE = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +120,14 @@ class Between:
         Relative group magnitude at or below which a group counts as dropped.
     note : str
         Why the count cannot be made, when it cannot.
+    resampled : list of LpvModel
+        The models :func:`lpvid.resampled` identified on data simulated
+        from :attr:`model` (empty until it ran): when there are any, the
+        spread is theirs (:data:`RESAMPLED_SCALE` times their median
+        distance), not the band and the committee's.
+    resampled_warned : list of str
+        The first warning of each of those runs that warned (the summary
+        says how many, and the first).
     """
 
     model: LpvModel
@@ -112,6 +137,8 @@ class Between:
     held: NDArray[np.bool_] | None = field(default=None, repr=False)
     threshold: float = 1e-6
     note: str = ""
+    resampled: list[LpvModel] = field(default_factory=list, repr=False)
+    resampled_warned: list[str] = field(default_factory=list, repr=False)
 
     @cached_property
     def _open(self) -> tuple[SilentCount, NDArray[np.float64]] | None:
@@ -179,7 +206,9 @@ class Between:
         Entry by entry, the covariance's band of coverage ``level`` plus the
         largest distance to another fit within the noise (of :attr:`voters`),
         or their median distance where the points determine the structure
-        (:attr:`determined`).
+        (:attr:`determined`). With :attr:`resampled` models: instead
+        :data:`RESAMPLED_SCALE` times their median distance
+        (:mod:`lpvid.pipeline.resample`; ``level`` is then not used).
         """
         return self._around(freqs_hz, p, level)[0]
 
@@ -198,6 +227,9 @@ class Between:
         """The spread (:meth:`spread`) and the model's frozen FRF it is around."""
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
+        if self.resampled:
+            apart = np.array([np.abs(m.frf(f, p) - G) for m in self.resampled])
+            return RESAMPLED_SCALE * np.median(apart, axis=0), G
         band = np.zeros(G.shape)
         if self.band is not None:
             band = band_radius(level) * self.band.frf_std(f, p)
@@ -240,26 +272,39 @@ class Between:
                 + (
                     "the points determine the returned structure: the spread below adds "
                     "their median distance to its band"
-                    if self.determined
+                    if self.determined and not self.resampled
                     else "where they disagree with the model returned, the data are silent"
                 )
             )
             left = len(self.members) - len(self.voters)
             if left:
                 lines.append(
-                    f"  {left} of them unstable between the points, left out of the spread "
-                    "(as out of the choice)"
+                    f"  {left} of them unstable between the points, left out of the "
+                    + ("choice" if self.resampled else "spread (as out of the choice)")
                 )
-        elif self.count is not None and not self.count.determined:
+        if self.resampled:
+            warned = self.resampled_warned
+            said = f"; {len(warned)} of those runs warned, the first: {warned[0]}" if warned else ""
+            lines.append(
+                f"  the spread below: {RESAMPLED_SCALE:g} times the median distance of the "
+                f"{len(self.resampled)} models identified again on data simulated from the "
+                f"model returned (lpvid.resampled){said}"
+            )
+        elif not self.members and self.count is not None and not self.count.determined:
             lines.append(
                 "  no other fit within the noise was made (validation data judged, or one "
                 "route only): the spread below is the noise's part on the directions the "
                 "points see, not what the open ones allow"
             )
-        check = self.check
+        if not self.resampled and self.count is not None and not self.count.determined:
+            lines.append(
+                "  a spread that measures what another run would return: "
+                "lpvid.resampled(result) (identify again on data simulated from this model)"
+            )
+        check = None if self.resampled else self.check
         if check is not None and np.any(check.scales < 1.0):
             lines.append(f"  the band: {check.describe()}")
-        if self.data is not None and (self.band is not None or self.members):
+        if self.data is not None and (self.band is not None or self.members or self.resampled):
             rel, where = self.worst()
             at = ", ".join(f"{x:.4g}" for x in where)
             lines.append(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from lpvid.data.frf import FrfData
 from lpvid.fit.cost import vnls
@@ -15,6 +16,9 @@ from lpvid.pipeline.between import Between
 from lpvid.stable.scan import StabilityReport
 from lpvid.trust.steps import trust_lines
 from lpvid.trust.uncertainty import Covariance
+
+if TYPE_CHECKING:
+    from lpvid.pipeline.problem import Problem
 
 __all__ = ["IdentifyResult", "PathEntry", "path_entry"]
 
@@ -137,6 +141,10 @@ class IdentifyResult:
         directions of :attr:`model`'s structure they do not see (and how
         many more points would), the other fits within the noise, and a
         spread between the points (:class:`lpvid.pipeline.between.Between`).
+    problem : Problem or None
+        The checked problem identified (data, order, basis, fixed
+        parameters, settings): what :func:`lpvid.resampled` identifies
+        again on simulated data. None in a result made by hand.
     """
 
     model: LpvModel
@@ -160,6 +168,7 @@ class IdentifyResult:
     covariance: Covariance | None = None
     stability: StabilityReport | None = None
     between: Between | None = None
+    problem: Problem | None = field(default=None, repr=False)
 
     @property
     def entry(self) -> PathEntry:

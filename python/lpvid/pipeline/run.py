@@ -455,6 +455,7 @@ def _run(
         covariance=done.covariance,
         stability=done.stability,
         between=between,
+        problem=problem,
     )
 
 

@@ -1,0 +1,180 @@
+"""Resampling: identify again on data simulated from the model returned (issue 58, item 2).
+
+The noise model is checked against its statistics, the spread's rule on
+stand-in models at known distances, and the whole on the model-reduction
+community's synthetic system at three points against its known truth
+(``benches/bench_few.py --resample 5`` measures the same over many draws).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+import warnings
+
+import numpy as np
+import pytest
+
+import lpvid
+from lpvid.data.noise import circular_noise
+from lpvid.pipeline.between import RESAMPLED_SCALE, Between
+from lpvid.pipeline.resample import simulated
+from lpvid.testing import noisy_data, synthetic_parametric
+
+TRUE = synthetic_parametric(10)
+FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
+FIXED = {"D": True}
+UNSEEN = np.linspace(0.03, 0.99, 20)
+
+
+def _data(p, seed=0):
+    return noisy_data(TRUE, p, FREQS, np.random.default_rng(seed), 0.01)
+
+
+def test_circular_noise_is_lpvid_noise_model():
+    """|e|^2 / sigma^2 is exponential with mean 1; real and imaginary parts independent, alike."""
+    rng = np.random.default_rng(1)
+    sigma = 0.1 + rng.random((50, 40, 2, 1))
+    e = np.concatenate([circular_noise(sigma, rng) / sigma for _ in range(50)]).ravel()
+    n = e.size  # 200 000 draws: the means below are within 4 / sqrt(n) of theirs
+    assert abs(np.mean(np.abs(e) ** 2) - 1.0) < 4 / np.sqrt(n)
+    assert abs(np.mean(e.real**2) - 0.5) < 4 * np.sqrt(0.5) / np.sqrt(n)
+    assert abs(np.mean(e.imag**2) - 0.5) < 4 * np.sqrt(0.5) / np.sqrt(n)
+    assert abs(np.mean(e.real * e.imag)) < 4 * 0.5 / np.sqrt(n)
+    assert circular_noise(sigma, np.random.default_rng(2)).shape == sigma.shape
+
+
+def test_simulated_data_are_the_model_within_the_noise():
+    """Same points, lines, sigma; the model's V_NLS on them is M on average (the noise floor)."""
+    data = _data([0.02, 0.5, 1.0])
+    rng = np.random.default_rng(3)
+    costs = []
+    for _ in range(40):
+        sim = simulated(TRUE, data, rng)
+        assert np.array_equal(sim.p, data.p) and np.array_equal(sim.freqs_hz, data.freqs_hz)
+        assert np.array_equal(sim.sigma, data.sigma) and sim.Ts == data.Ts
+        costs.append(lpvid.vnls(TRUE, sim))
+    m = data.n_residuals  # V_NLS of the truth: mean M, standard deviation sqrt(M)
+    assert abs(np.mean(costs) - m) < 4 * np.sqrt(m / len(costs))
+    assert 0.5 < np.std(costs) / np.sqrt(m) < 1.5
+    # the noise is the data's, around the model's own FRF: not the data's values
+    G = TRUE.frf(FREQS, data.p)
+    assert np.allclose(np.mean(np.abs(sim.G - G) ** 2 / data.sigma**2), 1.0, atol=0.05)
+
+
+def _scaled(model, c):
+    """The model's FRF times 1 + c (C and D scaled)."""
+    return lpvid.LpvModel(
+        model.A, model.B, model.C * (1 + c), model.D * (1 + c), basis=model.basis, Ts=model.Ts
+    )
+
+
+def test_the_spread_of_resampled_models_is_the_scale_times_their_median_distance():
+    data = _data([0.02, 0.5, 1.0])
+    cs = [0.01, -0.02, 0.04, 0.005, -0.03]  # median distance 0.02 |G|
+    between = Between(TRUE, data=data, resampled=[_scaled(TRUE, c) for c in cs])
+    G = TRUE.frf(FREQS, UNSEEN)
+    expect = RESAMPLED_SCALE * 0.02 * np.abs(G)
+    np.testing.assert_allclose(between.spread(FREQS, UNSEEN), expect, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(
+        between.relative_spread(FREQS, UNSEEN), RESAMPLED_SCALE * 0.02, rtol=1e-9
+    )
+    assert "3 times the median distance of the 5 models" in between.summary()
+    assert "lpvid.resampled(result)" not in between.summary()  # done: no advice to do it
+    assert between.worst()[0] == pytest.approx(RESAMPLED_SCALE * 0.02, rel=1e-9)
+    # without them: the band and the committee (none here: no spread at all)
+    assert not np.any(Between(TRUE, data=data).spread(FREQS, UNSEEN))
+
+
+@pytest.fixture(scope="module")
+def three_points():
+    data = _data([0.02, 0.45, 1.0], seed=5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        res = lpvid.identify(data, 10, TRUE.basis, fixed=FIXED)
+        again = lpvid.resampled(res)
+    return res, again
+
+
+def test_resampling_gives_a_spread_that_covers_the_truth_and_says_how_far(three_points):
+    """At three points: the spread is at least the worst error and within ten times it.
+
+    (This draw: 0.87-0.96 of the lines and points covered and the spread
+    1.7-2.4 times the error over the seeds 0-3, both routes: the test asks
+    0.8 and [1, 10], a margin for the last bits of other processors.)
+    """
+    res, again = three_points
+    assert res.between.resampled == [] and len(again.between.resampled) == 5
+    assert not res.between.determined and "lpvid.resampled(result)" in res.between.summary()
+    assert again.model is res.model and again.timings["resample_s"] > 0
+    G, Gt = res.model.frf(FREQS, UNSEEN), TRUE.frf(FREQS, UNSEEN)
+    err = np.abs(G - Gt)
+    spread = again.between.spread(FREQS, UNSEEN)
+    assert np.mean(err <= spread) >= 0.8
+    ref = np.linalg.norm(Gt.reshape(len(UNSEEN), -1), axis=1)
+    worst_err = np.max(np.linalg.norm(err.reshape(len(UNSEEN), -1), axis=1) / ref)
+    worst_spread = np.max(np.linalg.norm(spread.reshape(len(UNSEEN), -1), axis=1) / ref)
+    assert 1.0 <= worst_spread / worst_err <= 10.0
+    # the same seed, the same models; another seed, others
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        models = [m.theta for m in lpvid.resampled(res, 2).between.resampled]
+        other = lpvid.resampled(res, 1, seed=1).between.resampled[0]
+    assert all(
+        np.array_equal(a, b.theta) for a, b in zip(models, again.between.resampled[:2], strict=True)
+    )
+    assert not np.array_equal(other.theta, models[0])
+
+
+def test_next_points_follows_the_resampled_spread(three_points):
+    res, again = three_points
+    alone = dataclasses.replace(again.between, members=[])
+    plan = lpvid.suggest_points(dataclasses.replace(again, between=alone))
+    assert plan.criterion == "committee"
+    grid = plan.grid if plan.grid.ndim > 1 else plan.grid[:, None]
+    np.testing.assert_allclose(plan.band, alone.relative_spread(res.data.freqs_hz, grid))
+    nothing = dataclasses.replace(res.between, members=[])
+    assert lpvid.suggest_points(dataclasses.replace(res, between=nothing)).criterion != "committee"
+
+
+def test_bad_arguments_are_refused_with_what_they_should_be(three_points):
+    res, _ = three_points
+    with pytest.raises(TypeError, match="IdentifyResult"):
+        lpvid.resampled(res.model)
+    with pytest.raises(ValueError, match="holds no problem"):
+        lpvid.resampled(dataclasses.replace(res, problem=None))
+    with pytest.raises(ValueError, match="time records"):
+        lpvid.resampled(dataclasses.replace(res, problem=types.SimpleNamespace(time_data=1)))
+    with pytest.raises(ValueError, match="draws"):
+        lpvid.resampled(res, 0)
+    with pytest.raises(TypeError, match="seed"):
+        lpvid.resampled(res, 1, seed="x")
+
+
+def test_each_run_gets_its_own_simulated_data_and_validation_data(three_points, monkeypatch):
+    """Validation data are simulated at their points too; the runs' warnings are said."""
+    from lpvid.pipeline import resample
+
+    res, _ = three_points
+    val = _data([0.3, 0.7], seed=9)
+    problem = dataclasses.replace(res.problem, validation=val)
+    seen = []
+
+    def identify(p):
+        seen.append(p)
+        warnings.warn(f"run {len(seen)} warned", lpvid.ConvergenceWarning, stacklevel=2)
+        return types.SimpleNamespace(model=res.model)
+
+    monkeypatch.setattr(resample, "identify", identify)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the runs' warnings are said, not raised
+        again = lpvid.resampled(dataclasses.replace(res, problem=problem), 3)
+    assert again.between.resampled_warned == ["run 1 warned", "run 2 warned", "run 3 warned"]
+    assert "3 of those runs warned, the first: run 1 warned" in again.between.summary()
+    assert len(seen) == 3 and all(p.order == 10 and p.basis is TRUE.basis for p in seen)
+    for p in seen:
+        assert np.array_equal(p.validation.p, val.p) and np.array_equal(p.data.p, res.data.p)
+        assert not np.array_equal(p.validation.G, val.G)  # simulated, not the measured ones
+        sim = p.validation.G - res.model.frf(val.freqs_hz, val.p)
+        assert np.mean(np.abs(sim) ** 2 / val.sigma**2) < 2.0  # the noise, around the model
+    assert not np.array_equal(seen[0].data.G, seen[1].data.G)  # a noise draw each
