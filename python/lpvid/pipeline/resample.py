@@ -106,7 +106,7 @@ def resampled(
 
     Examples
     --------
-    >>> import numpy as np, lpvid
+    >>> import numpy as np, lpvid, lpvid.testing
     >>> true = lpvid.testing.synthetic_parametric(10)
     >>> f = np.logspace(0.5, 3.5, 60) / (2 * np.pi)
     >>> data = lpvid.testing.noisy_data(true, [0.02, 0.5, 1.0], f, np.random.default_rng(0), 0.01)
