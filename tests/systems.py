@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag
 
+from lpvid.testing import noisy_data, synthetic_parametric
+
 Ss = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 #: Scheduling points and band of the gantry-like system (tube side length in mm).
@@ -128,3 +130,17 @@ def first_order_frf():
     G = G + sigma * (rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)) / np.sqrt(2)
     data = lpvid.FrfData([0.0, 1 / 3, 2 / 3, 1.0], f, G, sigma=sigma, Ts=1.0)
     return data, data.subset([1, 2])
+
+
+#: The model-reduction community's synthetic parametric system as the
+#: few-points tests measure it (issue 58): 120 lines log-spaced over
+#: 10^0.5 to 10^3.5 rad/s, 1 % noise, D fixed, unseen values inside [0.02, 1].
+SYNTHETIC = synthetic_parametric(10)
+SYNTHETIC_FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
+SYNTHETIC_FIXED = {"D": True}
+SYNTHETIC_UNSEEN = np.linspace(0.03, 0.99, 20)
+
+
+def synthetic_data(p, seed=0):
+    """:data:`SYNTHETIC` measured at ``p`` with 1 % noise of the given seed."""
+    return noisy_data(SYNTHETIC, p, SYNTHETIC_FREQS, np.random.default_rng(seed), 0.01)

@@ -2,6 +2,7 @@
 
 import json
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -149,6 +150,9 @@ MISUSE = [
     ("suggest-zero", [*FIT, "--suggest", "0"], "--suggest"),
     ("suggest-not-a-number", [*FIT, "--suggest", "two"], "--suggest"),
     ("suggest-more-than-the-grid", [*FIT, "--suggest", "100"], "--suggest"),
+    # --resample
+    ("resample-zero", [*FIT, "--resample", "0"], "--resample"),
+    ("resample-not-a-number", [*FIT, "--resample", "five"], "--resample"),
     # --out
     ("out-missing", ["fit", "{f}/id.npz", "--order", "6"], "--out"),
     ("out-is-a-file", [*FIT[:5], "{f}/a-file"], "--out"),
@@ -248,3 +252,17 @@ def test_fit_suggests_where_to_measure_next(files, tmp_path, capsys):
     assert len(points) == 2 and len(set(points)) == 2
     lo, hi = data.p_range
     assert all(lo <= p <= hi and not np.any(np.isclose(p, data.p)) for p in points)
+
+
+def test_fit_resamples_the_spread_and_suggests_by_it(files, tmp_path, capsys):
+    """`--resample 2`: the spread is that of two runs on simulated data; --suggest follows it."""
+    out = tmp_path / "out"
+    argv = [a.format(f=files, out=out) for a in FIT]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
+        code = main([*argv, "--resample", "2", "--suggest", "1", "--no-figures", "--quiet"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    report = (out / "report.md").read_text()
+    said = "3 times the median distance of the 2 models identified again on data simulated"
+    assert said in report and "where to measure next" in printed

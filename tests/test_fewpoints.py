@@ -14,21 +14,17 @@ import warnings
 
 import numpy as np
 import pytest
+from systems import SYNTHETIC as TRUE
+from systems import SYNTHETIC_FIXED as FIXED
+from systems import SYNTHETIC_FREQS as FREQS
+from systems import SYNTHETIC_UNSEEN as UNSEEN
+from systems import synthetic_data as _data
 
 import lpvid
 from lpvid.pipeline import fewpoints, misfit, opening
 from lpvid.pipeline.between import Between, Member
-from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
+from lpvid.testing import noisy_data, worst_relative_error
 from lpvid.trust.silent import range_grid
-
-TRUE = synthetic_parametric(10)
-FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
-FIXED = {"D": True}
-UNSEEN = np.linspace(0.03, 0.99, 20)
-
-
-def _data(p, seed=0):
-    return noisy_data(TRUE, p, FREQS, np.random.default_rng(seed), 0.01)
 
 
 def _shifted(model, scale):

@@ -14,21 +14,16 @@ import warnings
 
 import numpy as np
 import pytest
+from systems import SYNTHETIC as TRUE
+from systems import SYNTHETIC_FIXED as FIXED
+from systems import SYNTHETIC_FREQS as FREQS
+from systems import SYNTHETIC_UNSEEN as UNSEEN
+from systems import synthetic_data as _data
 
 import lpvid
 from lpvid.data.noise import circular_noise
 from lpvid.pipeline.between import RESAMPLED_SCALE, Between
 from lpvid.pipeline.resample import simulated
-from lpvid.testing import noisy_data, synthetic_parametric
-
-TRUE = synthetic_parametric(10)
-FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
-FIXED = {"D": True}
-UNSEEN = np.linspace(0.03, 0.99, 20)
-
-
-def _data(p, seed=0):
-    return noisy_data(TRUE, p, FREQS, np.random.default_rng(seed), 0.01)
 
 
 def test_circular_noise_is_lpvid_noise_model():

@@ -10,19 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from systems import SYNTHETIC as TRUE
+from systems import SYNTHETIC_FIXED as FIXED
+from systems import SYNTHETIC_FREQS as FREQS
+from systems import synthetic_data as _data
 
 import lpvid
 from lpvid.initial.blocks import block_form, block_structure
-from lpvid.testing import direct_frf, noisy_data, synthetic_parametric
+from lpvid.testing import direct_frf
 from lpvid.trust import silent
-
-TRUE = synthetic_parametric(10)
-FREQS = np.logspace(0.5, 3.5, 120) / (2 * np.pi)
-FIXED = {"D": True}
-
-
-def _data(p, seed=0):
-    return noisy_data(TRUE, p, FREQS, np.random.default_rng(seed), 0.01)
 
 
 def test_more_points_never_open_a_direction_and_enough_close_them():

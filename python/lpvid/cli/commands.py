@@ -146,6 +146,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="also print the K scheduling values where one more FRF measurement would shrink "
         "the model's uncertainty bands most (lpvid.next_points), with a figure",
     )
+    fit.add_argument(
+        "--resample",
+        type=int,
+        metavar="N",
+        help="measure the spread between the points by identifying again on N data sets "
+        "simulated from the model returned (lpvid.resampled; about N times the fit's time)",
+    )
     add_outputs(fit)
     select_command.add_parser(sub)
     return parser
@@ -264,11 +271,13 @@ def _fit(args: argparse.Namespace) -> int:
     basis = basis_of(args.basis, args.domain, data, validation, args.scale)
     if args.suggest is not None:
         suggest_count(args.suggest, basis, data)
+    if args.resample is not None and args.resample < 1:
+        raise Misuse(f"--resample: expected a positive number of runs, got {args.resample}")
     say(f"data: {data}")
 
     def go() -> lpvid.IdentifyResult:
         try:
-            return lpvid.identify(
+            result = lpvid.identify(
                 data,
                 args.order,
                 basis,
@@ -280,6 +289,9 @@ def _fit(args: argparse.Namespace) -> int:
             )
         except (ValueError, TypeError) as exc:
             raise misuse(exc) from exc
+        if args.resample:
+            result = lpvid.resampled(result, args.resample, progress=say)
+        return result
 
     return _run(
         go,

@@ -299,7 +299,8 @@ class Between:
         if not self.resampled and self.count is not None and not self.count.determined:
             lines.append(
                 "  a spread that measures what another run would return: "
-                "lpvid.resampled(result) (identify again on data simulated from this model)"
+                "lpvid.resampled(result) (identify again on data simulated from this model; "
+                "lpvid fit --resample 5)"
             )
         check = None if self.resampled else self.check
         if check is not None and np.any(check.scales < 1.0):

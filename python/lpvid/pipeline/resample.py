@@ -20,9 +20,9 @@ where it is largest.
 It costs ``draws`` runs of :func:`lpvid.identify`. Measured on
 ``benches/bench_few.py`` (``python benches/bench_few.py --resample 5``,
 ``docs/fewpoints.md``): with five draws the spread is within ten times the
-actual worst error between the points, and at least that error, in 80 to
+actual worst error between the points, and at least that error, in 78 to
 100 % of the draws of three systems at three to eight points, where the
-band and the committee's spread manage 50 to 92 %.
+band and the committee's spread are in 57 to 95 %.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from lpvid.pipeline.run import Progress, identify
 __all__ = ["DRAWS", "resampled", "simulated"]
 
 #: Runs of :func:`resampled` by default: five put the spread within ten
-#: times the actual error in 80 % of the draws or more on every case of
+#: times the actual error in 78-100 % of the draws of every case of
 #: ``benches/bench_few.py`` measured (``docs/fewpoints.md``).
 DRAWS = 5
 
