@@ -390,3 +390,23 @@ def test_the_routes_followed_ahead_are_those_open_routes_may_follow(monkeypatch)
         assert out["blocks:2"].said == ["blocks:2 on its path"]
         assert out["blocks:2"].route.counted == "count of blocks:2"
     assert counted[-1] == ("blocks:2", 1e-6)
+
+
+def test_why_the_open_directions_are_not_counted_is_said_in_one_way():
+    """Time records, or more free parameters than the dense count takes: the note says so."""
+    from types import SimpleNamespace
+
+    from lpvid.pipeline.routes import MAX_COUNTED, uncounted
+
+    assert uncounted(MAX_COUNTED) == ""
+    assert f"{MAX_COUNTED + 1} free parameters, more than {MAX_COUNTED}" in uncounted(
+        MAX_COUNTED + 1
+    )
+    assert "time records" in uncounted(3, time_cost=object())
+    big = SimpleNamespace(model=TRUE, covariance=None, fixed=np.zeros(MAX_COUNTED + 1, bool))
+    data = _data([0.02, 0.5, 1.0])
+    between = fewpoints.open_between(big, [], data, 1e-6, None)
+    assert between.note == uncounted(MAX_COUNTED + 1) and between.count is None
+    assert "not counted (" in between.summary()
+    timed = fewpoints.open_between(big, [], data, 1e-6, time_cost=object())
+    assert timed.note == uncounted(0, object())

@@ -291,13 +291,13 @@ class Between:
                 f"{len(self.resampled)} models identified again on data simulated from the "
                 f"model returned (lpvid.resampled){said}"
             )
-        elif not self.members and self.count is not None and not self.count.determined:
+        elif not self.members and self.determined is False:
             lines.append(
                 "  no other fit within the noise was made (validation data judged, or one "
                 "route only): the spread below is the noise's part on the directions the "
                 "points see, not what the open ones allow"
             )
-        if not self.resampled and self.count is not None and not self.count.determined:
+        if not self.resampled and self.determined is False:
             lines.append(
                 "  a spread that measures what another run would return: "
                 "lpvid.resampled(result) (identify again on data simulated from this model; "

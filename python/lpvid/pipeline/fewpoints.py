@@ -65,7 +65,7 @@ from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between, Member
 from lpvid.pipeline.bulge import bulge
 from lpvid.pipeline.misfit import misfit
-from lpvid.pipeline.routes import MAX_COUNTED, Route, count_silent
+from lpvid.pipeline.routes import Route, count_silent, uncounted
 from lpvid.stable.scan import stability
 from lpvid.trust.silent import range_grid
 
@@ -308,13 +308,9 @@ def open_between(
     """The :class:`~lpvid.pipeline.between.Between` of the model returned.
 
     Counted when first asked for; not with time records, or a structure of
-    more than :data:`MAX_COUNTED` free parameters (the note says why).
+    more than :data:`lpvid.pipeline.routes.MAX_COUNTED` free parameters (the note says why).
     """
-    note = ""
-    if time_cost is not None:
-        note = "the time records see the model between the points"
-    elif int((~done.fixed).sum()) > MAX_COUNTED:
-        note = f"more than {MAX_COUNTED} free parameters (the count is dense)"
+    note = uncounted(int((~done.fixed).sum()), time_cost)
     return Between(
         model=done.model,
         members=members,

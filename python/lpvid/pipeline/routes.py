@@ -28,7 +28,7 @@ from lpvid.pipeline.result import PathEntry
 from lpvid.trust.silent import SilentCount, silent_directions
 from lpvid.trust.steps import stable_fit
 
-__all__ = ["MAX_COUNTED", "Route", "count_silent", "follow", "knee", "path_choice"]
+__all__ = ["MAX_COUNTED", "Route", "count_silent", "follow", "knee", "path_choice", "uncounted"]
 
 
 @dataclass
@@ -161,13 +161,24 @@ def path_choice(entries: list[PathEntry], tolerance: float) -> tuple[int, str]:
 MAX_COUNTED = 2500
 
 
+def uncounted(free: int, time_cost: Any = None) -> str:
+    """Why the silent directions of ``free`` parameters are not counted ("" when they are).
+
+    Not with time records (they see the model between the points), nor
+    beyond :data:`MAX_COUNTED` free parameters.
+    """
+    if time_cost is not None:
+        return "the time records see the model between the points"
+    if free > MAX_COUNTED:
+        return f"{free} free parameters, more than {MAX_COUNTED} (the count is dense)"
+    return ""
+
+
 def count_silent(
-    model: LpvModel, data: FrfData, fixed: Any, threshold: float, time_cost: Any = None
+    model: LpvModel, data: FrfData, fixed: Any, threshold: float
 ) -> tuple[SilentCount | None, str]:
     """:func:`lpvid.trust.silent.silent_directions`, or None and why it was not counted."""
-    if time_cost is not None:
-        return None, "the time records see the model between the points"
-    free = int((~fixed_mask(model, fixed)).sum())
-    if free > MAX_COUNTED:
-        return None, f"{free} free parameters, more than {MAX_COUNTED} (the count is dense)"
+    why = uncounted(int((~fixed_mask(model, fixed)).sum()))
+    if why:
+        return None, why
     return silent_directions(model, data, fixed, threshold=threshold), ""
