@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import real_array
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.model.lpv import LpvModel
 from lpvid.trust.profile import BandCheck, checked_band
@@ -224,6 +225,7 @@ class Between:
         den = np.linalg.norm(G.reshape(len(G), -1), axis=1)
         return num / np.maximum(den, np.finfo(float).tiny)
 
+    @single_blas
     def _around(self, freqs_hz: ArrayLike, p: ArrayLike, level: float) -> tuple[NDArray, NDArray]:
         """The spread (:meth:`spread`) and the model's frozen FRF it is around."""
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()

@@ -37,6 +37,7 @@ from lpvid import _core
 from lpvid._checks import positive_float, real_array
 from lpvid._problemlike import from_problem
 from lpvid._spread import product
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData, z_points
 from lpvid.errors import ConvergenceWarning
 from lpvid.fit.cost import gauss_newton
@@ -122,6 +123,7 @@ class Covariance:
         """Standard deviation of every entry of ``model.theta`` (0 where fixed)."""
         return np.sqrt(np.maximum(np.diag(self.theta), 0.0))
 
+    @single_blas
     def lti_covariance(self, p: ArrayLike) -> NDArray[np.float64]:
         """Covariance of the frozen LTI parameters ``[vec A; vec B; vec C; vec D]`` at ``p``.
 
@@ -137,6 +139,7 @@ class Covariance:
         """
         return frozen_blocks(self.theta, self._index, coefficient_weights(self.model, p))
 
+    @single_blas
     def frf_std(self, freqs_hz: ArrayLike, p: ArrayLike) -> NDArray[np.float64]:
         """Standard deviation of the model FRF at any frequencies and scheduling values.
 
@@ -189,6 +192,7 @@ class Covariance:
         """
         return band_radius(level) * self.frf_std(freqs_hz, p)
 
+    @single_blas
     def pole_std(
         self, p: ArrayLike, *, return_poles: bool = False
     ) -> NDArray[np.float64] | tuple[NDArray[np.complex128], NDArray[np.float64]]:
