@@ -7,7 +7,9 @@ the model's worst relative FRF error at 20 unseen values is above the goal
 (0.01), add one measured point and identify again, up to ``--most``
 points added. Three ways to choose the next point:
 
-- ``next``: :func:`lpvid.next_points` on the result;
+- ``next``: :func:`lpvid.next_points` on the result (with ``--resample B``,
+  on :func:`lpvid.resampled` of it with ``B`` runs: the spread measured by
+  identifying again, which ``next_points`` then follows);
 - ``gap``: the midpoint of the largest gap between the points measured;
 - ``grid``: no loop: an even grid of ``Nb + 1 + k`` points, ``k = 0, 1, ...``
   (every point measured anew), until the goal is met.
@@ -26,7 +28,7 @@ meet the goal (a draw that does not meet it within ``--most`` counts as
 set to get there (:func:`measured_beyond`: the grid measures each count's
 values anew), and the mean error after each number of added points.
 
-Run: python benches/bench_plan.py [--cases mor onegroup] [--draws 20] [--most 5]
+Run: python benches/bench_plan.py [--cases mor onegroup] [--draws 20] [--most 5] [--resample B]
 """
 
 from __future__ import annotations
@@ -60,7 +62,7 @@ def _one(true: lpvid.LpvModel, p: float, freqs_hz, draw: int) -> lpvid.FrfData:
     return noisy_data(true, [p], freqs_hz, np.random.default_rng(seed), 0.01)
 
 
-def loop(name: str, draw: int, way: str, most: int) -> list[float]:
+def loop(name: str, draw: int, way: str, most: int, resample: int = 0) -> list[float]:
     """The worst error after 0, 1, ... added points (stops once the goal is met)."""
     case = CASES[name]
     true = case.truth(draw)
@@ -86,6 +88,8 @@ def loop(name: str, draw: int, way: str, most: int) -> list[float]:
         if errors[-1] <= GOAL or k == most:
             break
         if way == "next":
+            if resample:
+                res = lpvid.resampled(res, resample)
             new = float(lpvid.next_points(res)[0])
         else:
             p = np.sort(data.p)
@@ -123,13 +127,16 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=20)
     parser.add_argument("--most", type=int, default=5)
     parser.add_argument("--ways", nargs="+", default=["next", "gap", "grid"])
+    parser.add_argument(
+        "--resample", type=int, default=0, help="next: follow lpvid.resampled's spread, B runs"
+    )
     args = parser.parse_args()
     lines = []
     for name in args.cases:
         for way in args.ways:
             added, curves = [], []
             for draw in range(args.draws):
-                errs = loop(name, draw, way, args.most)
+                errs = loop(name, draw, way, args.most, args.resample)
                 met = errs[-1] <= GOAL
                 added.append(len(errs) - 1 if met else args.most + 1)
                 curves.append(errs + [errs[-1]] * (args.most + 1 - len(errs)))

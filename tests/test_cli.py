@@ -254,8 +254,8 @@ def test_fit_suggests_where_to_measure_next(files, tmp_path, capsys):
     assert all(lo <= p <= hi and not np.any(np.isclose(p, data.p)) for p in points)
 
 
-def test_fit_resamples_the_spread_and_suggests_by_it(files, tmp_path, capsys):
-    """`--resample 2`: the spread is that of two runs on simulated data; --suggest follows it."""
+def test_fit_resamples_the_spread_and_still_suggests(files, tmp_path, capsys):
+    """`--resample 2`: the spread is that of two runs on simulated data; --suggest still works."""
     out = tmp_path / "out"
     argv = [a.format(f=files, out=out) for a in FIT]
     with warnings.catch_warnings():

@@ -121,15 +121,24 @@ def test_resampling_gives_a_spread_that_covers_the_truth_and_says_how_far(three_
     assert not np.array_equal(other.theta, models[0])
 
 
-def test_next_points_follows_the_resampled_spread(three_points):
+def test_where_to_measure_is_the_committees_whatever_the_resampling(three_points):
+    """next_points follows this run's fits within the noise, not the resampled models."""
     res, again = three_points
+    before, after = lpvid.suggest_points(res), lpvid.suggest_points(again)
+    assert after.criterion == before.criterion == "committee"
+    np.testing.assert_array_equal(after.points, before.points)
+    np.testing.assert_array_equal(after.band, before.band)
+    # the band the plan works on is the committee's spread, not the resampled one
+    grid = after.grid if after.grid.ndim > 1 else after.grid[:, None]
+    f = res.data.freqs_hz
+    resampled = again.between.relative_spread(f, grid)
+    assert not np.allclose(after.band, resampled, rtol=0.1)
+    committee = dataclasses.replace(again.between, resampled=[])
+    np.testing.assert_array_equal(after.band, committee.relative_spread(f, grid))
+    # resampled models without a committee: the covariance's design, as without them
     alone = dataclasses.replace(again.between, members=[])
     plan = lpvid.suggest_points(dataclasses.replace(again, between=alone))
-    assert plan.criterion == "committee"
-    grid = plan.grid if plan.grid.ndim > 1 else plan.grid[:, None]
-    np.testing.assert_allclose(plan.band, alone.relative_spread(res.data.freqs_hz, grid))
-    nothing = dataclasses.replace(res.between, members=[])
-    assert lpvid.suggest_points(dataclasses.replace(res, between=nothing)).criterion != "committee"
+    assert plan.criterion != "committee"
 
 
 def test_bad_arguments_are_refused_with_what_they_should_be(three_points):

@@ -14,8 +14,10 @@ points, and identified with the same problem (order, basis, fixed
 parameters, settings, range). The result returned carries their models in
 :attr:`~lpvid.IdentifyResult.between`, whose spread is then
 :data:`~lpvid.pipeline.between.RESAMPLED_SCALE` times their median distance
-from the model returned, entry by entry; :func:`lpvid.next_points` measures
-where it is largest.
+from the model returned, entry by entry. Where to measure next is not theirs:
+:func:`lpvid.next_points` follows the committee of the run's own fits, as
+without resampling (:mod:`lpvid.experiment.nextpoints`: measured, the
+resampled spread placed points no better).
 
 It costs ``draws`` runs of :func:`lpvid.identify`. Measured on
 ``benches/bench_few.py`` (``python benches/bench_few.py --resample 5``,
@@ -89,7 +91,8 @@ def resampled(
         ``result`` with :attr:`~lpvid.IdentifyResult.between` carrying the
         models identified (``between.resampled``): its
         :meth:`~lpvid.Between.spread`, :meth:`~lpvid.Between.worst` and
-        summary are theirs, and :func:`lpvid.next_points` follows them.
+        summary are theirs (:func:`lpvid.next_points` still follows the
+        run's committee).
         ``timings["resample_s"]`` is the time taken. The runs' warnings
         are not raised: the summary says how many warned, and the first
         (``between.resampled_warned``).
