@@ -7,9 +7,10 @@ the model's worst relative FRF error at 20 unseen values is above the goal
 (0.01), add one measured point and identify again, up to ``--most``
 points added. Three ways to choose the next point:
 
-- ``next``: :func:`lpvid.next_points` on the result (with ``--resample B``,
-  on :func:`lpvid.resampled` of it with ``B`` runs: the spread measured by
-  identifying again, which ``next_points`` then follows);
+- ``next``: :func:`lpvid.next_points` on the result (with ``--resample B``:
+  on :func:`lpvid.resampled` of it with ``B`` runs, the committee's
+  criterion applied to the resampled spread instead of the committee's, as
+  ``next_points`` did until 2026-11-30: the placement it measured and left);
 - ``gap``: the midpoint of the largest gap between the points measured;
 - ``grid``: no loop: an even grid of ``Nb + 1 + k`` points, ``k = 0, 1, ...``
   (every point measured anew), until the goal is met.
@@ -62,6 +63,19 @@ def _one(true: lpvid.LpvModel, p: float, freqs_hz, draw: int) -> lpvid.FrfData:
     return noisy_data(true, [p], freqs_hz, np.random.default_rng(seed), 0.01)
 
 
+def _by_resampled(res: lpvid.IdentifyResult, draws: int) -> float:
+    """The next point by the committee's criterion on the spread of ``draws`` resampled runs."""
+    from lpvid.experiment import nextpoints
+
+    again = lpvid.resampled(res, draws)
+    placing = nextpoints._placing
+    nextpoints._placing = lambda between: between  # keep the resampled models
+    try:
+        return float(lpvid.next_points(again)[0])
+    finally:
+        nextpoints._placing = placing
+
+
 def loop(name: str, draw: int, way: str, most: int, resample: int = 0) -> list[float]:
     """The worst error after 0, 1, ... added points (stops once the goal is met)."""
     case = CASES[name]
@@ -88,9 +102,7 @@ def loop(name: str, draw: int, way: str, most: int, resample: int = 0) -> list[f
         if errors[-1] <= GOAL or k == most:
             break
         if way == "next":
-            if resample:
-                res = lpvid.resampled(res, resample)
-            new = float(lpvid.next_points(res)[0])
+            new = float(_by_resampled(res, resample) if resample else lpvid.next_points(res)[0])
         else:
             p = np.sort(data.p)
             gaps = np.diff(p)

@@ -325,7 +325,7 @@ def suggest_points(
         )
     between = getattr(result, "between", None)
     if between is not None and between.members:
-        return _by_committee(result, replace(between, resampled=[]), cands, grid, pairs, scales, k)
+        return _by_committee(result, _placing(between), cands, grid, pairs, scales, k)
     index = _lti_index(model)
     f = data.freqs_hz
     parts = GridParts(model, f, grid)
@@ -351,6 +351,11 @@ def suggest_points(
         variance=variance,
         p_range=pairs[0] if n_params == 1 else pairs,
     )
+
+
+def _placing(between: Any) -> Any:
+    """What the committee's criterion follows: ``between`` less resampled models (module notes)."""
+    return replace(between, resampled=[])
 
 
 def _by_committee(
