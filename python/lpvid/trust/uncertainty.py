@@ -336,6 +336,7 @@ def pseudo_inverse(
     return 0.5 * (inv + inv.T), int(keep.sum()), k, int((~keep).sum())
 
 
+@single_blas
 def covariance(
     model: LpvModel,
     data: FrfData,
