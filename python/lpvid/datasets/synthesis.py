@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
 from lpvid.data.frf import FrfData, z_points
+from lpvid.data.noise import circular_noise
 from lpvid.model.frozen import lti_frf
 
 Matrices = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
@@ -98,8 +99,8 @@ def _measure(
     """True FRFs at ``p`` plus circular complex Gaussian noise of known sigma.
 
     ``sigma[q, :, i, j] = 10^(-snr_db / 20) * rms_k |G[q, k, i, j]|``, the
-    same at every line; the noise ``sigma * (n1 + j n2) / sqrt(2)`` with
-    n1, n2 standard normal has ``E|noise|^2 = sigma^2``. Without noise
+    same at every line; the noise lpvid's circular complex Gaussian
+    (:func:`lpvid.data.noise.circular_noise`), ``E|noise|^2 = sigma^2``. Without noise
     (``snr_db`` None) sigma is the rms magnitude itself.
     """
     z = z_points(freqs_hz, Ts)
@@ -108,8 +109,7 @@ def _measure(
     if snr_db is None:
         return FrfData(p, freqs_hz, G, np.broadcast_to(rms, G.shape), Ts)
     sigma = np.broadcast_to(rms * 10.0 ** (-snr_db / 20.0), G.shape)
-    noise = rng.standard_normal(G.shape) + 1j * rng.standard_normal(G.shape)
-    return FrfData(p, freqs_hz, G + sigma * noise / math.sqrt(2.0), sigma, Ts)
+    return FrfData(p, freqs_hz, G + circular_noise(sigma, rng), sigma, Ts)
 
 
 def _generators(seed: Any) -> tuple[np.random.Generator, np.random.Generator]:

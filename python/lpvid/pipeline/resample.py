@@ -30,12 +30,12 @@ band and the committee's spread are in 57 to 95 %.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from lpvid._capture import collected
 from lpvid._checks import generator, positive_int
 from lpvid.data.frf import FrfData
 from lpvid.data.noise import circular_noise
@@ -142,12 +142,11 @@ def resampled(
             validation = simulated(result.model, problem.validation, rng)
         # The runs' warnings are about models no one is shown: kept, and said
         # in the summary (Between.resampled_warned), not raised.
-        with warnings.catch_warnings(record=True) as said:
-            warnings.simplefilter("always")
+        with collected() as said:
             again = identify(replace(problem, data=data, validation=validation))
         models.append(again.model)
         if said:
-            warned.append(str(said[0].message))
+            warned.append(said[0][1])
     between = result.between or Between(result.model, data=result.data)
     return replace(
         result,
