@@ -22,9 +22,10 @@ resampled spread placed points no better).
 It costs ``draws`` runs of :func:`lpvid.identify`. Measured on
 ``benches/bench_few.py`` (``python benches/bench_few.py --resample 5``,
 ``docs/fewpoints.md``): with five draws the spread is within ten times the
-actual worst error between the points, and at least that error, in 78 to
-100 % of the draws of three systems at three to eight points, where the
-band and the committee's spread are in 57 to 95 %.
+actual worst error between the points, and at least that error, in 82 to
+100 % of the draws of three systems at three to eight points but for one
+two-parameter system at six points (72 %), where the band and the
+committee's spread are in 60 to 95 %.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from lpvid.pipeline.run import Progress, identify
 __all__ = ["DRAWS", "resampled", "simulated"]
 
 #: Runs of :func:`resampled` by default: five put the spread within ten
-#: times the actual error in 78-100 % of the draws of every case of
+#: times the actual error in 72-100 % of the draws of every case of
 #: ``benches/bench_few.py`` measured (``docs/fewpoints.md``).
 DRAWS = 5
 
