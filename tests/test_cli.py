@@ -9,6 +9,7 @@ import pytest
 
 import lpvid
 from lpvid.cli import main
+from lpvid.pipeline.between import RESAMPLED_SCALE
 
 
 @pytest.fixture(scope="module")
@@ -264,5 +265,5 @@ def test_fit_resamples_the_spread_and_still_suggests(files, tmp_path, capsys):
     assert code == 0
     printed = capsys.readouterr().out
     report = (out / "report.md").read_text()
-    said = "3 times the median distance of the 2 models identified again on data simulated"
+    said = f"{RESAMPLED_SCALE:g} times the median distance of the 2 models identified again"
     assert said in report and "where to measure next" in printed

@@ -13,19 +13,21 @@ Gaussian noise of the data's sigma, lpvid's noise model:
 points, and identified with the same problem (order, basis, fixed
 parameters, settings, range). The result returned carries their models in
 :attr:`~lpvid.IdentifyResult.between`, whose spread is then
-:data:`~lpvid.pipeline.between.RESAMPLED_SCALE` times their median distance
-from the model returned, entry by entry. Where to measure next is not theirs:
-:func:`lpvid.next_points` follows the committee of the run's own fits, as
-without resampling (:mod:`lpvid.experiment.nextpoints`: measured, the
-resampled spread placed points no better).
+:data:`~lpvid.pipeline.between.RESAMPLED_SCALE` times the median distance
+from the model returned, entry by entry, of these models and the run's own
+fits within the noise (:attr:`~lpvid.Between.voters`) together. Where to
+measure next is not theirs: :func:`lpvid.next_points` follows the committee
+of the run's own fits, as without resampling
+(:mod:`lpvid.experiment.nextpoints`: measured, the resampled spread placed
+points no better).
 
 It costs ``draws`` runs of :func:`lpvid.identify`. Measured on
 ``benches/bench_few.py`` (``python benches/bench_few.py --resample 5``,
 ``docs/fewpoints.md``): with five draws the spread is within ten times the
-actual worst error between the points, and at least that error, in 82 to
-100 % of the draws of three systems at three to eight points but for one
-two-parameter system at six points (72 %), where the band and the
-committee's spread are in 60 to 95 %.
+actual worst error between the points, and at least that error, in 85 to
+100 % of the draws of three systems at three to eight points (the
+resampled models alone, three times their median distance: 76 to 100 %),
+where the band and the committee's spread are in 60 to 95 %.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ from lpvid.pipeline.run import Progress, identify
 __all__ = ["DRAWS", "resampled", "simulated"]
 
 #: Runs of :func:`resampled` by default: five put the spread within ten
-#: times the actual error in 72-100 % of the draws of every case of
+#: times the actual error in 85-100 % of the draws of every case of
 #: ``benches/bench_few.py`` measured (``docs/fewpoints.md``).
 DRAWS = 5
 
@@ -92,8 +94,8 @@ def resampled(
         ``result`` with :attr:`~lpvid.IdentifyResult.between` carrying the
         models identified (``between.resampled``): its
         :meth:`~lpvid.Between.spread`, :meth:`~lpvid.Between.worst` and
-        summary are theirs (:func:`lpvid.next_points` still follows the
-        run's committee).
+        summary are theirs and the voters' together
+        (:func:`lpvid.next_points` still follows the run's committee).
         ``timings["resample_s"]`` is the time taken. The runs' warnings
         are not raised: the summary says how many warned, and the first
         (``between.resampled_warned``).
