@@ -233,18 +233,16 @@ class Between:
         """The spread (:meth:`spread`) and the model's frozen FRF it is around."""
         f = real_array(freqs_hz, "freqs_hz", ndim=(0, 1)).ravel()
         G = self.model.frf(f, p)
-        voters = self.voters
+        fits = [*self.resampled, *(m.model for m in self.voters)]
+        apart = [np.abs(m.frf(f, p) - G) for m in fits]
         if self.resampled:
-            fits = [*self.resampled, *(m.model for m in voters)]
-            apart = np.array([np.abs(m.frf(f, p) - G) for m in fits])
             return RESAMPLED_SCALE * np.median(apart, axis=0), G
         band = np.zeros(G.shape)
         if self.band is not None:
             band = band_radius(level) * self.band.frf_std(f, p)
         far = np.zeros(G.shape)
-        apart = (np.abs(m.model.frf(f, p) - G) for m in voters)
-        if voters and self.determined:
-            far = np.median(list(apart), axis=0)
+        if apart and self.determined:
+            far = np.median(apart, axis=0)
         else:
             for d in apart:
                 far = np.maximum(far, d)
