@@ -313,3 +313,63 @@ fn the_cost_is_the_vnls_of_the_gauss_newton_pieces_to_the_last_bit() {
         assert_eq!(sum.cost(&theta).unwrap().to_bits(), total.vnls.to_bits());
     }
 }
+
+#[test]
+fn a_problem_evaluated_again_gives_the_bits_of_a_fresh_one() {
+    // A problem keeps its evaluations' workspaces for the next one
+    // (`lpvid::eval::workspace`): whatever it evaluated before, a singular
+    // model stopped partway through a task included, every piece must come
+    // out as from a copy that never evaluated anything.
+    let shape = Shape::new(2, 1, 2, 1).unwrap();
+    let lines = 1300; // several tasks a point, the last one part full
+    let at = 900; // z = 1 exactly on this line, e^{i w} on the others
+    let z: Vec<C64> = (0..lines)
+        .map(|k| match k {
+            k if k == at => C64::new(1.0, 0.0),
+            k => C64::from_polar(1.0, 0.01 + 0.002 * k as f64),
+        })
+        .collect();
+    let mut rng = Lcg(9);
+    let len = 3 * lines * 2;
+    let g: Vec<C64> = (0..len)
+        .map(|_| C64::new(rng.next_f64(), rng.next_f64()))
+        .collect();
+    let sigma: Vec<f64> = (0..len).map(|_| 0.5 + rng.next_f64()).collect();
+    let data = FrfData::new(3, 2, 1, z, g, &sigma).unwrap();
+    let p = Problem::new(shape, data, &[-1.0, 0.0, 1.0]).unwrap();
+    let fresh = p.clone();
+    let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
+    // A(psi) upper triangular: A_0 = [0.5 0.1; 0 0.3], A_1 = [a 0; 0 -0.2].
+    let (a0, a1) = (
+        shape.block(Matrix::A, 0).start,
+        shape.block(Matrix::A, 1).start,
+    );
+    let a = |theta: &mut Vec<f64>, corner: f64| {
+        theta[a0..a0 + 4].copy_from_slice(&[0.5, 0.0, 0.1, 0.3]);
+        theta[a1..a1 + 4].copy_from_slice(&[corner, 0.0, 0.0, -0.2]);
+    };
+    a(&mut theta, 0.45);
+    let bits = |p: &Problem, theta: &[f64]| {
+        let gn = p.gauss_newton(theta, &FreeSet::all(theta.len())).unwrap();
+        let mut out = vec![gn.vnls.to_bits()];
+        out.extend(gn.gradient.iter().chain(&gn.gram).map(|x| x.to_bits()));
+        out
+    };
+    let want = bits(&fresh, &theta);
+    let mut other = theta.clone();
+    other.iter_mut().for_each(|x| *x *= 0.9);
+    assert_ne!(bits(&p, &other), want);
+    assert_eq!(bits(&p, &theta), want);
+    // At the last point (psi = 1) a pole at z = 1, on line 900: the task
+    // of the lines from 768 (or 512: tasks of 256 lines at four lanes, 512
+    // at eight) has summed some of its lines when it stops.
+    let mut singular = theta.clone();
+    a(&mut singular, 0.5);
+    let err = p.gauss_newton(&singular, &FreeSet::all(theta.len()));
+    assert_eq!(
+        err.unwrap_err(),
+        lpvid::Error::Singular { point: 2, line: at }
+    );
+    assert_eq!(bits(&p, &theta), want);
+    assert_eq!(bits(&p, &theta), want);
+}

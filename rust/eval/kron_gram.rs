@@ -31,7 +31,7 @@ use crate::base::lanes::{Cx, LANES};
 use crate::base::layout::{Matrix, Shape};
 use crate::error::Result;
 use crate::eval::lti::Resolvent;
-use crate::memory::{try_vec, try_zeros};
+use crate::memory::{try_grow, try_vec, try_zeros};
 use faer::{Accum, Mat};
 
 /// Samples (line and group index) per matrix product: large enough for an
@@ -399,10 +399,14 @@ impl GramParts {
         let Shape { n, r, l, .. } = *shape;
         let (da, db) = (n + l, n + r);
         let lti = shape.lti_len();
-        let mut h = try_vec(lti * lti, 0.0, "the Gram matrix of one scheduling point")?;
+        debug_assert_eq!(lti, da * db);
+        // No pass of zeros first: every entry is written below.
+        let mut h = Vec::new();
+        try_grow(&mut h, lti * lti, "the Gram matrix of one scheduling point")?;
+        let room = &mut h.spare_capacity_mut()[..lti * lti];
         let mut put = |x: usize, y: usize, v: f64| {
-            h[x + y * lti] = v;
-            h[y + x * lti] = v;
+            room[x + y * lti].write(v);
+            room[y + x * lti].write(v);
         };
         // `lti_index(a, b)` of every `Theta_ab`, at `a + b da`.
         let index: Vec<usize> = (0..da * db)
@@ -426,6 +430,14 @@ impl GramParts {
                 }
             }
         }
+        // SAFETY: `try_grow` made room for `lti^2` values, and every one is
+        // written: `at` maps the `da db = lti` pairs `(a, b)` one to one onto
+        // the LTI indices, and for any two pairs, with `b <= b2` and `a <= a2`
+        // their smaller and larger row and column indices, the loops reach
+        // `(a, b, a2, b2)`, whose two `put`s write the entries of
+        // `(at(a, b), at(a2, b2))` and `(at(a2, b), at(a, b2))` both ways
+        // round: the two pairs are one of these.
+        unsafe { h.set_len(lti * lti) };
         Ok(h)
     }
 }

@@ -11,16 +11,16 @@ use crate::base::lanes::{Cx, LANES};
 use crate::base::layout::{FreeSet, Matrix, Shape};
 use crate::base::spread::{self, worth_spreading};
 use crate::error::{invalid, Error, Result};
-use crate::eval::kron_gram::{GramParts, KronGram};
+use crate::eval::kron_gram::GramParts;
 use crate::eval::lti::{lanes_of, Frozen, Hessenberg, Resolvent};
 use crate::eval::model::with_constant;
 use crate::eval::objective::{GaussNewton, Objective};
 use crate::eval::point_factors::{worth_it, PointFactors};
 use crate::eval::point_sums::PointSums;
+use crate::eval::workspace::{Spares, Workspace};
 use crate::memory::{try_par_columns_by, try_vec};
 use num_complex::Complex64 as C64;
 use std::mem::MaybeUninit;
-use std::sync::Mutex;
 
 /// Real residuals per task (the unit of parallel work).
 const TASK_COLUMNS: usize = 1024;
@@ -41,6 +41,8 @@ pub struct Problem {
     /// For every entry of theta: its basis index `i` and its index in the
     /// LTI parameter vector `[vec A; vec B; vec C; vec D]`.
     param_map: Vec<(usize, usize)>,
+    /// The evaluations' scratch space, kept for the next one.
+    spares: Spares,
 }
 
 /// A half-open range of frequency lines at one point: the unit of parallel work.
@@ -80,6 +82,7 @@ impl Problem {
             data,
             psi,
             param_map,
+            spares: Spares::default(),
         })
     }
 
@@ -146,20 +149,21 @@ impl Problem {
         // points in parallel.
         let per_task = lines_per_task(&self.shape);
         let sums = PointSums::new(self.data.n_points());
-        let spare = Mutex::new(Vec::new());
         let tasks = self.split(&mut residual);
         let spread = worth_spreading(tasks.len(), self.work(true));
-        spread::try_for_each_init(
+        let done = spread::try_for_each_init(
             tasks,
             spread,
-            || Lent::from(&spare, &self.shape),
+            || self.spares.lend(&self.shape),
             |ws, (task, slice)| {
                 let ws = ws.as_mut().map_err(|e| e.clone())?.get()?;
                 let part = self.task_gram(&forms[task.point], task, slice, ws, &sums)?;
                 sums.add(task.point, task.first / per_task, part);
                 Ok::<_, Error>(())
             },
-        )?;
+        );
+        self.spares.trim(&self.shape);
+        done?;
         let sums = sums
             .into_sums()
             .ok_or_else(|| Error::Internal("a task's Gram pieces went missing".into()))?;
@@ -411,64 +415,6 @@ impl Problem {
             })
             .collect();
         Ok((gradient, gram))
-    }
-}
-
-/// Per-thread scratch space of the Gauss-Newton evaluation: the resolvent
-/// and the Gram accumulator, reused from task to task.
-struct Workspace {
-    resolvent: Resolvent,
-    gram: KronGram,
-}
-
-impl Workspace {
-    fn new(shape: &Shape) -> Result<Self> {
-        Ok(Workspace {
-            resolvent: Resolvent::new(shape),
-            gram: KronGram::new(shape)?,
-        })
-    }
-}
-
-/// A workspace lent to one piece of a parallel loop, given back to the
-/// spares when the piece is done: rayon starts every piece it splits off
-/// with a fresh state, a dozen or more per evaluation, and a workspace
-/// holds megabytes of sample buffers (5.3 MB at n = 24 3 x 3).
-struct Lent<'a> {
-    ws: Option<Workspace>,
-    spare: &'a Mutex<Vec<Workspace>>,
-}
-
-impl<'a> Lent<'a> {
-    /// A spare workspace, or a new one.
-    fn from(spare: &'a Mutex<Vec<Workspace>>, shape: &Shape) -> Result<Self> {
-        let kept = spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        let ws = match kept {
-            Some(ws) => ws,
-            None => Workspace::new(shape)?,
-        };
-        Ok(Lent {
-            ws: Some(ws),
-            spare,
-        })
-    }
-
-    /// The workspace (held until the loan is dropped).
-    fn get(&mut self) -> Result<&mut Workspace> {
-        self.ws
-            .as_mut()
-            .ok_or_else(|| Error::Internal("a lent workspace was given back early".into()))
-    }
-}
-
-impl Drop for Lent<'_> {
-    fn drop(&mut self) {
-        if let Some(ws) = self.ws.take() {
-            self.spare
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push(ws);
-        }
     }
 }
 
