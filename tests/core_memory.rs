@@ -226,8 +226,11 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
             max_iter: 2,
             ..LmSettings::default()
         };
+        // Each fit on a copy: a problem keeps its evaluations' workspaces
+        // (the small ones), which a fit's peak includes.
+        let q = p.clone();
         let (fit, peak) =
-            peak_of(|| levenberg_marquardt(&p, &theta, &free, &lm, &mut Silent).unwrap());
+            peak_of(|| levenberg_marquardt(&q, &theta, &free, &lm, &mut Silent).unwrap());
         drop(fit);
         assert_bounds(&format!("{label} LM"), peak, lm_est.total, lm_est.scratch);
         // The estimate is Clarabel's (Newton's method may give any step to
@@ -240,8 +243,9 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
             ..L21Settings::default()
         };
         let sup = vec![1.0; shape.nb];
+        let q = p.clone();
         let (fit, peak) =
-            peak_of(|| fit_l21(&p, &theta, &free, &sup, &l21, None, &mut Silent).unwrap());
+            peak_of(|| fit_l21(&q, &theta, &free, &sup, &l21, None, &mut Silent).unwrap());
         drop(fit);
         let e = est.estimate(Method::L21 { pinned: false });
         assert_bounds(&format!("{label} l21"), peak, e.total, e.scratch);
@@ -249,8 +253,9 @@ fn the_estimate_bounds_the_peak_of_an_frf_evaluation_and_fits() {
             newton: true,
             ..l21
         };
+        let q = p.clone();
         let (fit, peak) =
-            peak_of(|| fit_l21(&p, &theta, &free, &sup, &newton, None, &mut Silent).unwrap());
+            peak_of(|| fit_l21(&q, &theta, &free, &sup, &newton, None, &mut Silent).unwrap());
         by_newton += fit
             .history
             .iter()
@@ -299,8 +304,11 @@ fn the_estimate_bounds_the_peak_of_a_time_record_fit() {
             max_iter: 2,
             ..LmSettings::default()
         };
+        // Each fit on a copy: a problem keeps its evaluations' workspaces
+        // (the small ones), which a fit's peak includes.
+        let q = p.clone();
         let (fit, peak) =
-            peak_of(|| levenberg_marquardt(&p, &theta, &free, &lm, &mut Silent).unwrap());
+            peak_of(|| levenberg_marquardt(&q, &theta, &free, &lm, &mut Silent).unwrap());
         drop(fit);
         assert_bounds(&format!("{label} LM"), peak, est.total, est.scratch);
     }

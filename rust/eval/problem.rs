@@ -137,6 +137,15 @@ impl Problem {
 
     /// Residual, V_NLS, gradient and `J^T J`, the last two restricted to `free`.
     pub fn gauss_newton(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
+        // The workspaces live to the end of the evaluation, and after it
+        // only when small (`crate::eval::workspace`).
+        let out = self.evaluate(theta, free);
+        self.spares.trim(&self.shape);
+        out
+    }
+
+    /// [`Problem::gauss_newton`], the workspaces left to the spares.
+    fn evaluate(&self, theta: &[f64], free: &FreeSet) -> Result<GaussNewton> {
         self.shape.check_theta(theta)?;
         if free.full_len() != self.shape.len() {
             return Err(invalid("free", "mask length differs from theta"));
@@ -151,7 +160,7 @@ impl Problem {
         let sums = PointSums::new(self.data.n_points());
         let tasks = self.split(&mut residual);
         let spread = worth_spreading(tasks.len(), self.work(true));
-        let done = spread::try_for_each_init(
+        spread::try_for_each_init(
             tasks,
             spread,
             || self.spares.lend(&self.shape),
@@ -161,9 +170,7 @@ impl Problem {
                 sums.add(task.point, task.first / per_task, part);
                 Ok::<_, Error>(())
             },
-        );
-        self.spares.trim(&self.shape);
-        done?;
+        )?;
         let sums = sums
             .into_sums()
             .ok_or_else(|| Error::Internal("a task's Gram pieces went missing".into()))?;

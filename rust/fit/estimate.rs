@@ -16,6 +16,7 @@ use crate::base::lanes::LANES;
 use crate::base::layout::{FreeSet, Matrix, Shape};
 use crate::eval::kron_gram::{GramParts, KronGram};
 use crate::eval::problem::lines_per_task;
+use crate::eval::workspace::KEEP_BYTES;
 use crate::time::BLOCK_ROWS;
 use faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch;
 use faer::Par;
@@ -63,8 +64,9 @@ pub struct FitSizes {
 pub struct Estimate {
     /// One Gauss-Newton evaluation at its peak (its result included).
     pub evaluation: usize,
-    /// What the optimiser holds across evaluations (`J^T J` and gradient
-    /// of the current point; for cone steps the Clarabel solvers kept).
+    /// What the fit holds across evaluations (`J^T J` and gradient of the
+    /// current point; for cone steps the Clarabel solvers kept; the
+    /// workspaces the problem keeps, [`kept_workspaces`]).
     pub held: usize,
     /// One step at its peak beyond what is held (the Levenberg-Marquardt
     /// factor; the cone programs' dense blocks and solver set-up).
@@ -73,7 +75,8 @@ pub struct Estimate {
     /// matrix products (a cache-sized slab per thread and a panel per
     /// product) and the vectors over the free parameters.
     pub scratch: usize,
-    /// The fit's peak: `held + max(step, evaluation) + scratch`.
+    /// The fit's peak: `held + max(step, evaluation - kept) + scratch`,
+    /// `kept` the workspaces counted in both `held` and `evaluation`.
     pub total: usize,
 }
 
@@ -118,22 +121,43 @@ pub fn frf_evaluation(
     // point (`crate::eval::point_sums`: a thread works through a run of tasks in
     // order, so the parts of at most one point per thread wait), never
     // more than every task's part.
-    let resolvent = CX * (n * n + 2 * n + 2 * n * r + 2 * n * l + l * r) + n * LANES;
-    let workspace = resolvent + KronGram::bytes(shape);
+    let workspace = workspace_bytes(shape);
+    // The workspaces live to the end of the evaluation (the small ones
+    // after it too: [`kept_workspaces`]).
+    let workspaces = threads * workspace;
     let tasks_per_point = n_lines.div_ceil(lines_per_task(shape));
     let part = GramParts::bytes(shape);
     let parts = part * (n_points * tasks_per_point).min(n_points + threads * tasks_per_point);
-    let stage1 = threads * (workspace + part) + parts;
+    let stage1 = workspaces + threads * part + parts;
     // Stage 2: every point's sum unfolded into its Gram matrix (the points
     // in parallel: the sums not yet unfolded, the Gram matrices of those
     // done).
     let gram_point = square(lti) + floats(lti);
     let busy = threads.min(n_points);
-    let stage2 = n_points * part.max(gram_point) + busy * gram_point;
+    let stage2 = n_points * part.max(gram_point) + busy * gram_point + workspaces;
     // Stage 3: J^T J, from the Gram matrices of the points.
     let result = square(n_free) + floats(n_free);
-    let stage3 = n_points * gram_point + result;
+    let stage3 = n_points * gram_point + result + workspaces;
     base + stage1.max(stage2).max(stage3)
+}
+
+/// One thread's workspace of a Gauss-Newton evaluation of FRF data: a
+/// resolvent and a Gram accumulator (`crate::eval::workspace`).
+fn workspace_bytes(shape: &Shape) -> usize {
+    let Shape { n, r, l, .. } = *shape;
+    let resolvent = CX * (n * n + 2 * n + 2 * n * r + 2 * n * l + l * r) + n * LANES;
+    resolvent + KronGram::bytes(shape)
+}
+
+/// The workspaces a problem of FRF data keeps from one evaluation to the
+/// next, one per thread: those whose accumulator is at most `KEEP_BYTES`
+/// (`crate::eval::workspace`), none of larger shapes.
+pub fn kept_workspaces(shape: &Shape, threads: usize) -> usize {
+    if KronGram::bytes(shape) <= KEEP_BYTES {
+        threads * workspace_bytes(shape)
+    } else {
+        0
+    }
 }
 
 /// One Gauss-Newton evaluation of time records (`TimeProblem::gauss_newton`)
@@ -228,9 +252,16 @@ impl FitSizes {
             .as_ref()
             .map(|t| time_evaluation(&self.shape, &self.free, t, self.threads));
         match (frf, time) {
-            (Some(a), Some(b)) => a.max(square(nf) + floats(nf) + b),
+            (Some(a), Some(b)) => a.max(square(nf) + floats(nf) + b + self.kept()),
             (a, b) => a.or(b).unwrap_or(0),
         }
+    }
+
+    /// The workspaces the FRF part keeps between evaluations
+    /// ([`kept_workspaces`]).
+    fn kept(&self) -> usize {
+        self.frf
+            .map_or(0, |_| kept_workspaces(&self.shape, self.threads))
     }
 
     /// The estimate for a fit by `method`.
@@ -276,12 +307,16 @@ impl FitSizes {
             }
         };
         let scratch = SCRATCH + self.threads * SCRATCH_PER_THREAD + floats(16 * nf);
+        // The problem's kept workspaces are held through the steps, and
+        // are part of every evaluation's peak.
+        let kept = self.kept();
+        let held = held + kept;
         Estimate {
             evaluation,
             held,
             step,
             scratch,
-            total: held + step.max(evaluation) + scratch,
+            total: held + step.max(evaluation.saturating_sub(kept)) + scratch,
         }
     }
 }
