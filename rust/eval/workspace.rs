@@ -7,7 +7,9 @@
 //! 5.8 MiB at n = 24 3 x 3, 12.8 MiB at n = 32 4 x 4). Made anew for every
 //! evaluation, they were allocated and zeroed every Levenberg-Marquardt
 //! step: on a small problem (n = 10 SISO, 200 lines, six points, a step
-//! about 0.2 ms a point) the zeroing alone was 3 % of `identify`'s samples.
+//! about 0.2 ms a point) that zeroing and the one of every point's Gram
+//! matrix before its unfolding (`GramParts::gram`, which now writes every
+//! entry once) were 3 % of `identify`'s samples.
 //! Workspaces of at most [`KEEP_BYTES`] are kept for the next evaluation;
 //! larger ones only for the pieces of the same evaluation, as before: their
 //! allocation is a small part of a large evaluation, and what the largest
