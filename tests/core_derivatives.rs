@@ -361,8 +361,7 @@ fn a_problem_evaluated_again_gives_the_bits_of_a_fresh_one() {
     assert_ne!(bits(&p, &other), want);
     assert_eq!(bits(&p, &theta), want);
     // At the last point (psi = 1) a pole at z = 1, on line 900: the task
-    // of the lines from 768 (or 512: tasks of 256 lines at four lanes, 512
-    // at eight) has summed some of its lines when it stops.
+    // that holds it has summed some of its lines when it stops.
     let mut singular = theta.clone();
     a(&mut singular, 0.5);
     let err = p.gauss_newton(&singular, &FreeSet::all(theta.len()));

@@ -43,7 +43,13 @@ impl Workspace {
 
 /// Workspaces of at most this many bytes are kept from one evaluation to
 /// the next (those of n = 16 2 x 2 and smaller).
-pub(crate) const KEEP_BYTES: usize = 4 << 20;
+const KEEP_BYTES: usize = 4 << 20;
+
+/// Whether a problem of `shape` keeps its workspaces from one evaluation
+/// to the next (its Gram accumulator at most [`KEEP_BYTES`]).
+pub(crate) fn kept(shape: &Shape) -> bool {
+    KronGram::bytes(shape) <= KEEP_BYTES
+}
 
 /// The workspaces not lent out: as many as an evaluation's loop had pieces
 /// running at once (one per thread). A copy of a problem starts with none.
@@ -70,10 +76,9 @@ impl Spares {
         self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// At the end of an evaluation: drop the spares of a `shape` whose
-    /// workspaces are larger than [`KEEP_BYTES`].
+    /// At the end of an evaluation: drop the spares unless [`kept`].
     pub(crate) fn trim(&self, shape: &Shape) {
-        if KronGram::bytes(shape) > KEEP_BYTES {
+        if !kept(shape) {
             self.locked().clear();
         }
     }
@@ -136,7 +141,7 @@ mod tests {
     #[test]
     fn small_workspaces_are_kept_for_the_next_evaluation_and_large_ones_not() {
         for (s, kept) in [(shape(10, 1), 1), (shape(16, 2), 1), (shape(24, 3), 0)] {
-            assert_eq!(KronGram::bytes(&s) <= KEEP_BYTES, kept == 1);
+            assert_eq!(super::kept(&s), kept == 1);
             let spares = Spares::default();
             {
                 // Two pieces at once, then one: two workspaces, reused.

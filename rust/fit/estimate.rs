@@ -16,7 +16,7 @@ use crate::base::lanes::LANES;
 use crate::base::layout::{FreeSet, Matrix, Shape};
 use crate::eval::kron_gram::{GramParts, KronGram};
 use crate::eval::problem::lines_per_task;
-use crate::eval::workspace::KEEP_BYTES;
+use crate::eval::workspace;
 use crate::time::BLOCK_ROWS;
 use faer::linalg::cholesky::llt::factor::cholesky_in_place_scratch;
 use faer::Par;
@@ -150,10 +150,10 @@ fn workspace_bytes(shape: &Shape) -> usize {
 }
 
 /// The workspaces a problem of FRF data keeps from one evaluation to the
-/// next, one per thread: those whose accumulator is at most `KEEP_BYTES`
-/// (`crate::eval::workspace`), none of larger shapes.
+/// next, one per thread, when its shape's are small enough
+/// (`crate::eval::workspace`), else none.
 pub fn kept_workspaces(shape: &Shape, threads: usize) -> usize {
-    if KronGram::bytes(shape) <= KEEP_BYTES {
+    if workspace::kept(shape) {
         threads * workspace_bytes(shape)
     } else {
         0
