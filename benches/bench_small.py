@@ -13,7 +13,11 @@ error at 20 unseen values against the truth; then the process's CPU
 seconds per run (every thread's, :func:`time.process_time`), the cores
 that makes on average, and the time the run would take with every core
 busy throughout (the CPU seconds over the cores: a floor that more
-overlap cannot beat). Then, when scikit-rf is
+overlap cannot beat). With ``--cores``, also the cores each stage keeps
+busy on average (the process's CPU seconds, read every 5 ms by a thread
+of the benchmark, over the stage's wall time; the stages placed one after
+the other from the call by their timings): where a core waits. Then, when
+scikit-rf is
 installed (it is no dependency of lpvid: ``pip install scikit-rf``),
 ``skrf.vectorFitting.VectorFittingParametric`` on the same data, with the
 order it finds itself and with five complex pole pairs (the truth's order),
@@ -21,14 +25,16 @@ order it finds itself and with five complex pole pairs (the truth's order),
 poles, its coefficients interpolated linearly between the points), timed
 and judged the same way.
 
-Run: python benches/bench_small.py [--repeat 5] [--seed 0]
+Run: python benches/bench_small.py [--repeat 5] [--seed 0] [--cores]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import sys
+import threading
 import time
 import types
 import warnings
@@ -53,17 +59,65 @@ def measured(seed: int) -> tuple[lpvid.LpvModel, lpvid.FrfData]:
     return true, noisy_data(true, points, FREQS_HZ, np.random.default_rng(seed), 0.01)
 
 
-def time_lpvid(true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int) -> None:
+#: The wall-time stages of identify's timings, in the order they run.
+STAGES = ("local_s", "smile_s", "path_s", "few_points_s", "finish_s")
+
+
+class CpuTrace:
+    """The process's CPU seconds against the clock, read every ``every`` seconds by a thread."""
+
+    def __init__(self, every: float = 0.005) -> None:
+        self.every, self.samples = every, [(time.perf_counter(), time.process_time())]
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+
+    def _read(self) -> None:
+        while not self._stop.wait(self.every):
+            self.samples.append((time.perf_counter(), time.process_time()))
+
+    def __enter__(self) -> CpuTrace:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.samples.append((time.perf_counter(), time.process_time()))
+
+    def cores(self, start: float, end: float) -> float:
+        """Cores busy on average from ``start`` to ``end`` (the nearest readings inside)."""
+        inside = [s for s in self.samples if start <= s[0] <= end]
+        if len(inside) < 2 or inside[-1][0] <= inside[0][0]:
+            return float("nan")
+        (t0, c0), (t1, c1) = inside[0], inside[-1]
+        return (c1 - c0) / (t1 - t0)
+
+
+def stage_cores(trace: CpuTrace, called: float, timings: dict[str, float]) -> dict[str, float]:
+    """Cores each stage kept busy: the stages one after the other from ``called``."""
+    out, at = {}, called
+    for stage in STAGES:
+        out[stage], at = trace.cores(at, at + timings[stage]), at + timings[stage]
+    return out
+
+
+def time_lpvid(
+    true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int, with_cores: bool = False
+) -> None:
     """Median seconds of identify and of each of its stages, and the error between the points."""
-    runs = []
+    runs, busy = [], []
     for k in range(repeat + 1):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            t, c = time.perf_counter(), time.process_time()
-            res = lpvid.identify(data, 10, true.basis, fixed={"D": True})
-            seconds, cpu = time.perf_counter() - t, time.process_time() - c
+            trace = CpuTrace() if with_cores else None
+            with trace or contextlib.nullcontext():
+                t, c = time.perf_counter(), time.process_time()
+                res = lpvid.identify(data, 10, true.basis, fixed={"D": True})
+                seconds, cpu = time.perf_counter() - t, time.process_time() - c
         if k:
             runs.append((seconds, res.timings, cpu))
+            if trace is not None:
+                busy.append(stage_cores(trace, t, res.timings))
     at = unseen(CASES["mor"], *map(np.atleast_1d, true.p_range))
     err = worst_relative_error(res.model, true, FREQS_HZ, at)
     print(
@@ -80,6 +134,16 @@ def time_lpvid(true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int) -> None:
         f"  CPU {cpu:.3f} s per run (every thread), {used:.2f} of {cores()} cores on average; "
         f"with every core busy throughout: {cpu / cores():.3f} s"
     )
+    if busy:
+        pairs = [(t, b) for (_, t, _), b in zip(runs, busy, strict=True)]
+        idle = {s: statistics.median(t[s] * (cores() - b[s]) for t, b in pairs) for s in STAGES}
+        print(
+            "  cores busy per stage (median; core-seconds left idle): "
+            + ", ".join(
+                f"{s[:-2]} {statistics.median(b[s] for b in busy):.2f} ({idle[s]:.3f})"
+                for s in STAGES
+            )
+        )
 
 
 def time_skrf(true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int) -> None:
@@ -137,9 +201,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--cores", action="store_true", help="also the cores each stage keeps busy on average"
+    )
     args = parser.parse_args()
     true, data = measured(args.seed)
-    time_lpvid(true, data, args.repeat)
+    time_lpvid(true, data, args.repeat, args.cores)
     time_skrf(true, data, args.repeat)
 
 
