@@ -95,9 +95,11 @@ class CpuTrace:
 
 def stage_cores(trace: CpuTrace, called: float, timings: dict[str, float]) -> dict[str, float]:
     """Cores each stage kept busy: the stages one after the other from ``called``."""
-    out, at = {}, called
+    out, start = {}, called
     for stage in STAGES:
-        out[stage], at = trace.cores(at, at + timings[stage]), at + timings[stage]
+        end = start + timings[stage]
+        out[stage] = trace.cores(start, end)
+        start = end
     return out
 
 
