@@ -128,3 +128,27 @@ def test_the_description_says_where_it_narrowed():
     said = some.describe()
     assert "along 2 of the band's 3" in said and "(70% of its variance" in said
     assert "factors 0.25 to 0.5" in said
+
+
+@pytest.mark.parametrize("lapack_gives_up", [False, True])
+def test_the_settled_test_form_is_the_pseudo_inverse_even_where_least_squares_gives_up(
+    monkeypatch, lapack_gives_up
+):
+    # g^T h^+ g, the Gauss-Newton gain that says whether a model sits at
+    # V_NLS's least, of a symmetric h of rank 5 in 8: against numpy's pinv,
+    # also when LAPACK's least squares raises (as OpenBLAS's did on a finite
+    # 320 x 320 h of one_group_lpv at three points).
+    from lpvid.trust import profile
+
+    rng = np.random.default_rng(3)
+    J = rng.standard_normal((5, 8)) * np.array([1e3, 1, 1e-2, 1, 10, 1, 1, 1])
+    h = J.T @ J
+    g = rng.standard_normal(8)
+    expected = g @ np.linalg.pinv(h, rcond=1e-12, hermitian=True) @ g
+    if lapack_gives_up:
+
+        def gives_up(*args, **kwargs):
+            raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+        monkeypatch.setattr(profile.np.linalg, "lstsq", gives_up)
+    assert profile._pinv_form(h, g) == pytest.approx(expected, rel=1e-8)
