@@ -75,9 +75,9 @@ START_FTOL = 3e-4
 #: system's local steps slid on along directions the point's data hardly
 #: see, and the starts built on those models took longer in their turn
 #: (the blocks route's fits 330 steps instead of 155): its identify 0.77
-#: times the time, the same model. Over 160 draws of ``bench_few.py``
-#: (both truths, 3-6 points) 134 models within 5 % of their error before,
-#: 7 better and 7 worse by 1.5 times or more (``docs/performance.md``). At
+#: times the time, the same model. Over 320 draws of ``bench_few.py``
+#: (both truths, 3-6 points) 258 models within 5 % of their error before,
+#: 14 better and 15 worse by 1.5 times or more (``docs/performance.md``). At
 #: :data:`FTOL` (1e-4) the few-points worst errors grew (the synthetic
 #: system at three points: 90 % quantile 0.12 -> 0.17, worst 0.23 -> 2.1).
 LOCAL_FTOL = 1e-6
