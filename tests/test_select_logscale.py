@@ -5,6 +5,11 @@ rod whose conductivity spans two decades, where the log scale is right,
 and modes quadratic in p over [1, 30], where it is wrong; select's own
 choice must be within 15 % of the better scale's worst relative error at
 scheduling values no data were taken at, on both.
+
+On the rod, the linear scale's model between the points follows the
+noise draw and even the last bits of the arithmetic (0.0022 to 1.4 at one
+draw across processors and step rules), so its claims are medians over
+``ROD_DRAWS`` noise draws with stated margins, never one draw's luck.
 """
 
 import json
@@ -123,31 +128,42 @@ def _quiet_select(*args, **kwargs):
         return lpvid.select(*args, **kwargs)
 
 
+ROD_DRAWS = range(9)
+
+
 @pytest.fixture(scope="module")
 def rod():
-    """The heat rod of 101 states, orders 4 and 6, degree 2: select's default and its choices."""
+    """The heat rod of 101 states, orders 4 and 6, degree 2, over ``ROD_DRAWS`` noise draws."""
     case = bench_logscale.rod(101)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", lpvid.ConvergenceWarning)
-        return case, bench_logscale.run(case, [4, 6], [2], 0)
+        return case, [bench_logscale.run(case, [4, 6], [2], seed) for seed in ROD_DRAWS]
 
 
 def test_the_log_scale_where_it_is_right(rod):
-    case, out = rod
-    sel = out["sel"]
-    assert [basis_label(r.basis) for r in sel.grid] == ["poly:2", "poly:2 log"] * 2
-    lin, log, chosen = (out[k][1] for k in ("linear", "log", "select"))
+    """Measured over the 9 draws on four numerics (this host's and CI's others, both step rules):
+    the log scale's median error 0.06-0.13 of the linear's, select on the log scale in 8 of 9
+    draws, and its median error / the better scale's 1.0."""
+    case, outs = rod
+    for out in outs:
+        assert [basis_label(r.basis) for r in out["sel"].grid] == ["poly:2", "poly:2 log"] * 2
+    lin, log, chosen = (np.array([out[k][1] for out in outs]) for k in ("linear", "log", "select"))
+    tables = "\n\n".join(out["sel"].table() for out in outs)
     # the log scale is much better between the points, and select takes it
-    assert log < 0.5 * lin, sel.table()
-    assert chosen <= GOAL * min(lin, log), sel.table()
-    assert sel.basis.scales == ("log",)
-    assert "chosen on the log scale" in sel.table().splitlines()[-1]
-    # the chosen model takes k in the user's units and its report says its scale
-    assert "s(log p)" in sel.model.basis.names[0] and sel.model.p_range == [0.1, 10.0]
+    assert np.median(log) < 0.5 * np.median(lin), tables
+    assert np.median(chosen) < 0.5 * np.median(lin), tables
+    assert np.median(chosen / np.minimum(lin, log)) <= GOAL, tables
+    on_log = [out["sel"] for out in outs if out["sel"].basis.scales == ("log",)]
+    assert len(on_log) >= 2 * len(outs) / 3, tables
+    for sel in on_log:
+        assert "chosen on the log scale" in sel.table().splitlines()[-1]
+        # the chosen model takes k in the user's units and its report says its scale
+        assert "s(log p)" in sel.model.basis.names[0] and sel.model.p_range == [0.1, 10.0]
 
 
 def test_log_scale_false_is_the_linear_pairs_choice(rod):
-    case, out = rod
+    case, outs = rod
+    out = outs[0]  # the draw of seed 0, as below
     rng = np.random.default_rng(0)
     data = lpvid.testing.noisy_data(case["true"], case["p"], case["freqs"], rng, 0.01)
     val = lpvid.testing.noisy_data(case["true"], case["p_val"], case["freqs"], rng, 0.01)
