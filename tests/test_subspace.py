@@ -239,6 +239,33 @@ def test_refined_mimo_models_reach_the_noise_floor(rng, Ts, strictly_proper):
         assert rel_err(m.frf(f, data.p[q])[0], G[q]) < 0.01
 
 
+@pytest.mark.parametrize("ftol", [None, 1e-10, 3e-4])
+def test_each_refinement_ends_where_a_step_buys_less_than_ftol(rng, ftol):
+    """The kept model is its start refined by fit_nls to ``ftol`` (default LOCAL_FTOL), to the bit;
+    a looser ftol stops earlier, and a start's fit is cut where a step bought less."""
+    from lpvid.fit.settings import LOCAL_FTOL
+
+    f = np.linspace(5.0, 400.0, 120)
+    G = np.array([lti_frf(mimo_ct(rng), z_of(f, None)) for _ in range(2)])
+    Gm, sigma = noisy(G, rng)
+    data = lpvid.FrfData([0.0, 1.0], f, Gm, sigma)
+    given = {} if ftol is None else {"ftol": ftol}
+    loc = lpvid.identify_lti(data, 5, **given)
+    tol = LOCAL_FTOL if ftol is None else ftol
+    for q, m in enumerate(loc):
+        again = lpvid.fit_nls(loc.initial[q], data.subset([q]), ftol=tol, warn=False)
+        np.testing.assert_array_equal(m.theta, again.model.theta)
+        assert m.info["n_iter"] == again.n_iter
+        if again.stop == "cost_change" and tol > 1e-10:
+            # the last accepted step bought less than tol of V_NLS, none before it did
+            v = [lpvid.vnls(loc.initial[q], data.subset([q]))]
+            v += [row["vnls"] for row in again.history if row["accepted"]]
+            gains = -np.diff(v) / np.asarray(v[:-1])
+            assert gains[-1] <= tol and np.all(gains[:-1] > tol)
+    with pytest.raises(ValueError, match=r"^ftol: expected"):
+        lpvid.identify_lti(data, 5, ftol=-1.0)
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_pole_below_the_band_is_found_from_one_of_the_starts(seed):
     """The built-in positioning stage: SISO, D = 0, real poles at 3 and 6 Hz, the band's low edge.

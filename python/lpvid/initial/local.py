@@ -7,13 +7,14 @@ from typing import Any
 
 import numpy as np
 
-from lpvid._checks import positive_int
+from lpvid._checks import positive_float, positive_int
 from lpvid._spread import Spread
 from lpvid._threads import single_blas
 from lpvid.data.basis import Polynomial
 from lpvid.data.frf import FrfData
 from lpvid.fit.cost import vnls_value as vnls
 from lpvid.fit.fits import fit_nls, raise_if_interrupted
+from lpvid.fit.settings import LOCAL_FTOL
 from lpvid.initial.coherent import balance
 from lpvid.initial.continuation import continue_local
 from lpvid.initial.diagnosis import consistency
@@ -24,14 +25,17 @@ from lpvid.model.lpv import LpvModel
 __all__ = ["SAME_FIT", "check_local_order", "identify_lti", "local_models"]
 
 #: Refined starts of one point whose V_NLS are within this fraction of the
-#: lowest are one fit reached by several routes (they agree to nine digits
-#: when they are), and the first in the starts' order is kept: the lowest
-#: would let the last bits of the data choose among them, and with them
+#: lowest are one fit reached by several routes (ended at
+#: :data:`lpvid.fit.settings.LOCAL_FTOL` they agree to 4e-14 to 2e-7 of it
+#: on the small system of ``bench_small.py``, seeds 0-2), and the first in
+#: the starts' order is kept: the lowest would let the last bits of the
+#: data choose among them, and with them
 #: the state coordinates that every route built on the local models
 #: follows (synthetic system at five points, draw 6 of bench_few.py: three
 #: starts at 109.419277162, another kept on each of two 1e-12 changes of
-#: the data, their coordinates 100 % apart). A stated margin a thousand
-#: times the spread of such ties, far below the noise.
+#: the data, their coordinates 100 % apart). A stated margin above the
+#: spread of such ties (a thousand times it when the fits ran to 1e-10),
+#: far below the noise.
 SAME_FIT = 1e-6
 
 
@@ -45,6 +49,7 @@ def identify_lti(
     refine: bool = True,
     n_rows: int | None = None,
     max_iter: int = 100,
+    ftol: float = LOCAL_FTOL,
     continuation: bool | str = False,
     executor: Executor | None = None,
 ) -> LocalModels:
@@ -77,6 +82,10 @@ def identify_lti(
         default: try 3n, 2n and n + 1.
     max_iter : int
         Most Levenberg-Marquardt steps per point.
+    ftol : float
+        A refinement ends when a step lowers the point's V_NLS by less than
+        ``ftol`` times it, >= 0 (default :data:`lpvid.fit.settings.LOCAL_FTOL`,
+        a millionth; :func:`lpvid.fit_nls` runs to 1e-10 by default).
     continuation : bool or "auto"
         After the plain identification, walk from the best-determined point
         outwards and refine each point's model from its neighbour's
@@ -113,6 +122,7 @@ def identify_lti(
     n = positive_int(order, "order")
     check_local_order(n, data)
     max_iter = positive_int(max_iter, "max_iter")
+    ftol = positive_float(ftol, "ftol", allow_zero=True)
     if not (isinstance(continuation, bool) or continuation == "auto"):
         raise ValueError(f"continuation: expected True, False or 'auto', got {continuation!r}")
     if continuation is not False and not refine:
@@ -125,6 +135,7 @@ def identify_lti(
         refine=refine,
         n_rows=n_rows,
         max_iter=max_iter,
+        ftol=ftol,
         continuation=continuation,
         executor=executor,
     )
@@ -150,6 +161,7 @@ def local_models(
     refine: bool = True,
     n_rows: int | None = None,
     max_iter: int = 100,
+    ftol: float = LOCAL_FTOL,
     continuation: bool | str = False,
     executor: Executor | None = None,
 ) -> LocalModels:
@@ -170,7 +182,7 @@ def local_models(
     starts = [_point_starts(pt, n, rows, stable, strictly_proper) for pt in points]
     fixed = {"D": True} if strictly_proper else None
     calls = [
-        (s, pt, fixed, max_iter, stable, refine)
+        (s, pt, fixed, max_iter, ftol, stable, refine)
         for pt, ss in zip(points, starts, strict=True)
         for s in ss
     ]
@@ -265,18 +277,28 @@ def _point_starts(
 
 @single_blas
 def _refined(
-    start: LpvModel, point: FrfData, fixed: Any, max_iter: int, stable: bool, refine: bool
+    start: LpvModel,
+    point: FrfData,
+    fixed: Any,
+    max_iter: int,
+    ftol: float,
+    stable: bool,
+    refine: bool,
 ) -> tuple[LpvModel, bool, tuple[bool, float]]:
     """One start refined (when ``refine``), whether it converged, and its rank among the point's.
 
     The rank: unstable after stable when ``stable``, then V_NLS.
     """
-    model, ok = _refine(start, point, fixed, max_iter) if refine else (start, True)
+    model, ok = _refine(start, point, fixed, max_iter, ftol) if refine else (start, True)
     return model, ok, (stable and not is_stable(model), vnls(model, point))
 
 
-def _refine(start: LpvModel, data: FrfData, fixed: Any, max_iter: int) -> tuple[LpvModel, bool]:
-    result = raise_if_interrupted(fit_nls(start, data, fixed, max_iter=max_iter, warn=False))
+def _refine(
+    start: LpvModel, data: FrfData, fixed: Any, max_iter: int, ftol: float
+) -> tuple[LpvModel, bool]:
+    result = raise_if_interrupted(
+        fit_nls(start, data, fixed, max_iter=max_iter, ftol=ftol, warn=False)
+    )
     info = {
         "method": "fd_subspace + fit_nls",
         "n_rows": start.info["n_rows"],
