@@ -250,19 +250,27 @@ def test_routes_open_only_when_the_points_leave_the_choice_open(points, opened):
 
 
 def test_the_blocks_route_fits_three_points_and_is_right_between_them():
+    """Over twelve noise draws at three points: one draw's error follows the last bits (seed 5:
+    0.053 on this host's numerics, 0.133 on the route without AVX-512), so the claim is the
+    medians'. Measured (seeds 0-11, both routes, local fits to 1e-10 and to LOCAL_FTOL): the
+    blocks route's best fit median 0.046-0.085, below 0.5 in 10 or 11 of 12; the full structure's
+    fits (the best of identify's starts) 0.96 to 7.8, median 2.5."""
     from lpvid.initial.blocks import hand_out_blocks
 
-    data = _data([0.02, 0.45, 1.0], seed=5)
-    local = lpvid.identify_lti(data, 10, strictly_proper=True)
-    cands = hand_out_blocks(data, TRUE.basis, FIXED, local).take()
-    assert cands and all(c.name.startswith("blocks:") for c in cands)
-    assert all(c.structure is not None and c.structure.shape == TRUE.theta.shape for c in cands)
-    best = min(cands, key=lambda c: c.vnls)
-    assert best.vnls <= 1.2 * data.n_residuals  # within the noise, with the form held
-    held = best.model.A[:, ~np.kron(np.eye(5), np.ones((2, 2))).astype(bool)]
-    assert np.all(held == 0)
-    # the full structure's fits at three points are off by 0.5 to 20 on such draws
-    assert worst_relative_error(best.model, TRUE, FREQS, UNSEEN) < 0.1
+    errors = []
+    for seed in range(12):
+        data = _data([0.02, 0.45, 1.0], seed=seed)
+        local = lpvid.identify_lti(data, 10, strictly_proper=True)
+        cands = hand_out_blocks(data, TRUE.basis, FIXED, local).take()
+        assert cands and all(c.name.startswith("blocks:") for c in cands)
+        assert all(c.structure is not None and c.structure.shape == TRUE.theta.shape for c in cands)
+        best = min(cands, key=lambda c: c.vnls)
+        assert best.vnls <= 1.2 * data.n_residuals, seed  # within the noise, with the form held
+        held = best.model.A[:, ~np.kron(np.eye(5), np.ones((2, 2))).astype(bool)]
+        assert np.all(held == 0), seed
+        errors.append(worst_relative_error(best.model, TRUE, FREQS, UNSEEN))
+    assert np.median(errors) < 0.15, errors
+    assert sum(e < 0.5 for e in errors) >= 2 * len(errors) / 3, errors
 
 
 def test_with_validation_data_open_directions_alone_open_no_route():
