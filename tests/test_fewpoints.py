@@ -254,7 +254,7 @@ def test_the_blocks_route_fits_three_points_and_is_right_between_them():
     0.053 on this host's numerics, 0.133 on the route without AVX-512), so the claim is the
     medians'. Measured (seeds 0-11, both routes, local fits to 1e-10 and to LOCAL_FTOL): the
     blocks route's best fit median 0.046-0.085, below 0.5 in 10 or 11 of 12; the full structure's
-    fits (the best of identify's starts) 0.96 to 7.8, median 2.5."""
+    fits (the best of identify's starts, measured at LOCAL_FTOL) 0.96 to 7.8, median 3.2."""
     from lpvid.initial.blocks import hand_out_blocks
 
     errors = []
