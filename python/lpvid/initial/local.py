@@ -28,14 +28,13 @@ __all__ = ["SAME_FIT", "check_local_order", "identify_lti", "local_models"]
 #: lowest are one fit reached by several routes (ended at
 #: :data:`lpvid.fit.settings.LOCAL_FTOL` they agree to 4e-14 to 2e-7 of it
 #: on the small system of ``bench_small.py``, seeds 0-2), and the first in
-#: the starts' order is kept: the lowest would let the last bits of the
-#: data choose among them, and with them
-#: the state coordinates that every route built on the local models
-#: follows (synthetic system at five points, draw 6 of bench_few.py: three
-#: starts at 109.419277162, another kept on each of two 1e-12 changes of
-#: the data, their coordinates 100 % apart). A stated margin above the
-#: spread of such ties (a thousand times it when the fits ran to 1e-10),
-#: far below the noise.
+#: the starts' order is kept: the lowest would let the last bits of the data
+#: choose among them, and with them the state coordinates that every route
+#: built on the local models follows (synthetic system at five points, draw
+#: 6 of bench_few.py: three starts at 109.419277162, another kept on each of
+#: two 1e-12 changes of the data, their coordinates 100 % apart). A stated
+#: margin above the spread of such ties (a thousand times it when the fits
+#: ran to 1e-10), far below the noise.
 SAME_FIT = 1e-6
 
 
