@@ -1,4 +1,8 @@
-"""Every dotted name that the docstrings, README and docs/*.md cite resolves; exports are public."""
+"""Cited names resolve and cited source files exist; exports are public.
+
+Dotted names from the docstrings, README and docs/*.md; source files from
+the README and docs/*.md.
+"""
 
 import ast
 import importlib
@@ -54,12 +58,43 @@ def resolve(name: str) -> object:
 
 CITED = _cited()
 
+#: A source file of this repository as the pages cite it (`rust/socp/warm.rs`).
+SOURCE = re.compile(
+    r"(?<![\w./-])(?:rust|python/lpvid|benches|tests|tools)/[\w./-]*\w\.(?:rs|py|toml)"
+)
+
+
+def _cited_sources() -> dict[str, str]:
+    # The changelog is history: it keeps the paths of its day.
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    out: dict[str, str] = {}
+    for page in pages:
+        if page.name != "changelog.md":
+            for path in SOURCE.findall(page.read_text()):
+                out.setdefault(path, page.relative_to(ROOT).as_posix())
+    return out
+
+
+CITED_SOURCES = _cited_sources()
+
 
 def test_the_walk_finds_names():
     # The walk itself: it must see the names the package is built around.
     assert {"lpvid.fit_l21", "lpvid.initial.interpolation.FORMS", "lpvid.datasets.gantry"} <= set(
         CITED
     )
+
+
+def test_every_source_file_the_pages_cite_exists():
+    # The walk sees the files the method is described by, and every one
+    # cited is in the tree (a file replaced must take its descriptions along).
+    assert {"rust/socp/warm.rs", "rust/l21/mod.rs", "benches/bench_scale.py"} <= set(CITED_SOURCES)
+    missing = [
+        f"{path} (cited in {page})"
+        for path, page in CITED_SOURCES.items()
+        if not (ROOT / path).exists()
+    ]
+    assert not missing, "cited files not in the tree: " + "; ".join(missing)
 
 
 @pytest.mark.parametrize("name", sorted(CITED))
