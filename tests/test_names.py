@@ -17,6 +17,8 @@ from lpvid import _core
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "python" / "lpvid"
 DOTTED = re.compile(r"(?<![\w./-])lpvid(?:\.[A-Za-z_]\w*)+")
+#: The pages: the README and every page of docs/.
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 
 def _docstrings(path: Path) -> list[str]:
@@ -36,7 +38,7 @@ def _cited() -> dict[str, str]:
         for doc in _docstrings(path):
             for name in DOTTED.findall(doc):
                 names.setdefault(name, str(path.relative_to(ROOT)))
-    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+    for page in PAGES:
         for name in DOTTED.findall(page.read_text()):
             names.setdefault(name, page.relative_to(ROOT).as_posix())
     return names
@@ -66,9 +68,8 @@ SOURCE = re.compile(
 
 def _cited_sources() -> dict[str, str]:
     # The changelog is history: it keeps the paths of its day.
-    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
     out: dict[str, str] = {}
-    for page in pages:
+    for page in PAGES:
         if page.name != "changelog.md":
             for path in SOURCE.findall(page.read_text()):
                 out.setdefault(path, page.relative_to(ROOT).as_posix())
