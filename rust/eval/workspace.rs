@@ -150,6 +150,8 @@ mod tests {
             }
             drop(spares.lend(&s).unwrap());
             assert_eq!(spares.count(), 2);
+            // Debug names the count, not the megabytes of samples.
+            assert_eq!(format!("{spares:?}"), "Spares(2 workspaces)");
             spares.trim(&s);
             assert_eq!(spares.count(), 2 * kept);
             assert_eq!(spares.clone().count(), 0, "a copy starts with none");
