@@ -90,6 +90,23 @@ def test_bad_input_is_refused_at_creation_with_identifys_message(
     assert today.split(":")[0] in {"basis", "order", "validation", "fixed", "time_data"}
 
 
+def test_a_progress_that_is_no_callable_is_refused_before_any_work(small, monkeypatch):
+    """``progress=True`` (as a verbose flag) once failed at the first message, deep inside."""
+    from lpvid.pipeline import run
+
+    data, _, basis = small
+    started = []
+    monkeypatch.setattr(run, "local_models", lambda *a, **k: started.append(1))
+    for bad in (True, "log", 1):
+        with pytest.raises(TypeError, match=r"^progress: expected a callable taking one str"):
+            lpvid.identify(data, 2, basis, progress=bad)
+    assert not started
+    said = []
+    with pytest.raises((TypeError, AttributeError)):  # the patched stage returned None
+        lpvid.identify(data, 2, basis, progress=said.append)
+    assert started and said[0] == "local models: order 2 at 3 scheduling points"
+
+
 def test_bad_settings_refused_with_identifys_message(small):
     data, _, basis = small
     cases = [

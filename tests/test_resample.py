@@ -189,6 +189,8 @@ def test_bad_arguments_are_refused_with_what_they_should_be(three_points):
         lpvid.resampled(res, 0)
     with pytest.raises(TypeError, match="seed"):
         lpvid.resampled(res, 1, seed="x")
+    with pytest.raises(TypeError, match="^progress: expected a callable"):
+        lpvid.resampled(res, 1, progress=True)
 
 
 def test_each_run_gets_its_own_simulated_data_and_validation_data(three_points, monkeypatch):

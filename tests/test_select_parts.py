@@ -581,7 +581,11 @@ def test_gammas_tolerance_and_fixed_reach_every_run(fake):
             "bases: poly:1 takes 2 scheduling parameter(s), the data have 1",
         ),
         (dict(data=FIVE.G), TypeError, "data: expected an FrfData, got ndarray"),
-        (dict(progress="log"), TypeError, "progress: expected a callable, got str"),
+        (
+            dict(progress="log"),
+            TypeError,
+            "progress: expected a callable taking one str (e.g. print) or None, got str",
+        ),
         (
             dict(fixed=np.zeros(8, dtype=bool)),
             TypeError,

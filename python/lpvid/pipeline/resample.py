@@ -40,12 +40,13 @@ import numpy as np
 
 from lpvid._capture import collected
 from lpvid._checks import generator, positive_int
+from lpvid._progress import Progress, check_progress, say
 from lpvid.data.frf import FrfData
 from lpvid.data.noise import circular_noise
 from lpvid.model.lpv import LpvModel
 from lpvid.pipeline.between import Between
 from lpvid.pipeline.result import IdentifyResult
-from lpvid.pipeline.run import Progress, identify
+from lpvid.pipeline.run import identify
 
 __all__ = ["DRAWS", "resampled", "simulated"]
 
@@ -124,6 +125,7 @@ def resampled(
     if not isinstance(result, IdentifyResult):
         raise TypeError(f"result: expected an IdentifyResult, got {type(result).__name__}")
     draws = positive_int(draws, "draws")
+    progress = check_progress(progress)
     rng = generator(seed)
     problem = result.problem
     if problem is None:
@@ -137,8 +139,7 @@ def resampled(
     t = time.perf_counter()
     models, warned = [], []
     for k in range(draws):
-        if progress is not None:
-            progress(f"resampling: identify on simulated data, run {k + 1} of {draws}")
+        say(progress, f"resampling: identify on simulated data, run {k + 1} of {draws}")
         data = simulated(result.model, problem.data, rng)
         validation = None
         if problem.validation is not None:

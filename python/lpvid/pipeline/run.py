@@ -10,18 +10,19 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from concurrent.futures import Executor
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from lpvid._progress import Progress, check_progress, say
 from lpvid._spread import SMALL_RUN_BYTES, check_executor, cores, own_threads
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis
 from lpvid.data.frf import FrfData
-from lpvid.errors import ConvergenceWarning, logger
+from lpvid.errors import ConvergenceWarning
 from lpvid.fit.fits import fit_nls, raise_if_interrupted, warn_if_unconverged
 from lpvid.fit.memory import check_memory, local_memory, pipeline_memory
 from lpvid.fit.results import PathResult
@@ -53,17 +54,9 @@ __all__ = [
     "identify",
 ]
 
-Progress = Callable[[str], Any]
-
 
 def _unsaid(message: str) -> None:
     """Where a piece's progress goes until it is taken (:class:`FollowAhead` keeps its own)."""
-
-
-def _say(progress: Progress | None, message: str) -> None:
-    logger.info(message)
-    if progress is not None:
-        progress(message)
 
 
 @single_blas
@@ -260,6 +253,7 @@ def identify(
     """
     t0 = time.perf_counter()
     arguments = IdentifyArguments.of(locals())  # before any other local name
+    progress = check_progress(progress)
     if isinstance(data, Problem):
         arguments.refuse()
         problem = data
@@ -297,7 +291,7 @@ def _run(
     gs = np.asarray(settings.path.gammas, dtype=float)
     timings: dict[str, float] = {}
 
-    _say(progress, f"local models: order {n} at {data.n_points} scheduling points")
+    say(progress, f"local models: order {n} at {data.n_points} scheduling points")
     t = time.perf_counter()
     # One point's fits are small even where the run is not: side by side on
     # threads of its own (see the executor's notes).
@@ -306,7 +300,7 @@ def _run(
         local = local_models(data, n, strictly_proper=strictly_proper(fixed), executor=points_on)
     timings["local_s"] = time.perf_counter() - t
 
-    _say(progress, f"initial models ({', '.join(starts.routes)}), each refined by fit_nls")
+    say(progress, f"initial models ({', '.join(starts.routes)}), each refined by fit_nls")
     t = time.perf_counter()
     candidates = candidates_of(
         data,
@@ -334,18 +328,18 @@ def _run(
         val = "" if c.validation_vnls is None else f", validation {c.validation_vnls:.5g}"
         dropped = "" if c.refined else f", dropped after {c.fit.n_iter if c.fit else 0} steps"
         state = ("" if c.stable else ", unstable") + dropped
-        _say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
+        say(progress, f"  {c.name}: V_NLS {c.vnls:.5g}{val}{state}")
     timings["nls_s"] = nls.timings["total_s"]
     if time_cost is not None:
-        _say(progress, f"refining the {start.name} start on the FRFs and the time records")
+        say(progress, f"refining the {start.name} start on the FRFs and the time records")
         nls = raise_if_interrupted(fit_nls(nls.model, data, fixed, warn=False, time_data=time_cost))
         warn_if_unconverged(nls, "the fit on FRFs and time records (fit_nls)", stacklevel=2)
         timings["nls_s"] += nls.timings["total_s"]
 
-    _say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
+    say(progress, f"l2,1 path over {gs.size} values of gamma from the {start.name} start")
     t = time.perf_counter()
     along = Along(
-        validation, tol, l21, p_range, stable, time_cost, lambda m: _say(progress, m), executor
+        validation, tol, l21, p_range, stable, time_cost, lambda m: say(progress, m), executor
     )
     ahead = _blocks_ahead(problem, local, executor, along, gs) if small else None
     try:
@@ -361,7 +355,7 @@ def _run(
         main,
         local,
         lambda c: follow(c.name, c.fit, gs, data, c.structure, along),
-        lambda message: _say(progress, message),
+        lambda message: say(progress, message),
         executor,
         ahead,
     )

@@ -22,11 +22,11 @@ import numpy as np
 
 from lpvid._capture import collected
 from lpvid._checks import positive_int
+from lpvid._progress import Progress, check_progress, say
 from lpvid._spread import POLL_S, check_executor
 from lpvid._threads import single_blas
 from lpvid.data.basis import Basis, Polynomial
 from lpvid.data.frf import FrfData
-from lpvid.errors import logger
 from lpvid.fit.cost import vnls
 from lpvid.fit.memory import pipeline_memory, runs_at_once
 from lpvid.fit.settings import DEFAULT_GAMMAS, IdentifySettings, PathSettings
@@ -41,7 +41,6 @@ from lpvid.selection.scales import log_grid
 
 __all__ = ["held_out_points", "select"]
 
-Progress = Callable[[str], Any]
 
 #: The error text of a pair that Ctrl-C cancelled.
 CANCELLED = "cancelled"
@@ -182,12 +181,6 @@ class _Task:
     args: tuple[Any, ...]
 
 
-def _say(progress: Progress | None, message: str) -> None:
-    logger.info(message)
-    if progress is not None:
-        progress(message)
-
-
 def _message(row: GridRow, task: _Task, out: _Outcome, done: int, total: int) -> str:
     what = row.label if task.point is None else f"{row.label}, point {task.point} held out"
     count = f"({done}/{total})"
@@ -230,7 +223,7 @@ def _gather(
         except Exception as exc:  # the executor's own failure (pickling, a lost worker)
             out = _Outcome(error=f"{type(exc).__name__}: {exc}")
         outcomes[k] = out
-        _say(progress, _message(rows[tasks[k].row], tasks[k], out, len(outcomes), len(tasks)))
+        say(progress, _message(rows[tasks[k].row], tasks[k], out, len(outcomes), len(tasks)))
 
     try:
         for k in sorted(size, key=lambda k: -size[k]):
@@ -447,12 +440,11 @@ def select(
     tol = shared.settings.path.tolerance
     bs, why = log_grid(bs, data, validation, log_scale)
     executor = check_executor(executor)
-    if progress is not None and not callable(progress):
-        raise TypeError(f"progress: expected a callable, got {type(progress).__name__}")
+    progress = check_progress(progress)
     pairs = [(n, b) for n in ns for b in bs]
     fixes = [_fixed_for(fixed, n, b, data) for n, b in pairs]
     hints = order_hints(data)
-    _say(progress, str(hints))
+    say(progress, str(hints))
     points = [] if validation is not None else held_out_points(data, bs)
     rule = "validation" if validation is not None else "held-out" if points else "noise floor"
     rows = [GridRow(order=n, basis=b) for n, b in pairs]
@@ -460,7 +452,7 @@ def select(
     tasks += [
         _Task(i, q, (shared, q, n, b, fixes[i])) for i, (n, b) in enumerate(pairs) for q in points
     ]
-    _say(progress, f"{len(pairs)} pairs, {len(tasks)} identify runs; the pairs judged by {rule}")
+    say(progress, f"{len(pairs)} pairs, {len(tasks)} identify runs; the pairs judged by {rule}")
     own = None
     if executor is None:
         needs = [pipeline_memory(data, n, b)[0] for n, b in pairs]
