@@ -48,6 +48,24 @@ fn every_kernel_gives_the_plain_loops_bits() {
     }
 }
 
+/// A kernel the processor runs is never refused (its products would go on
+/// the plain loop: the same bits, at a fraction of the speed), and one it
+/// does not run is never taken (an illegal instruction).
+#[test]
+fn the_kernels_available_are_those_the_processor_runs() {
+    assert!(Kernel::Plain.available());
+    #[cfg(target_arch = "x86_64")]
+    {
+        let avx2 = std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma");
+        let avx512 = avx2 && std::arch::is_x86_feature_detected!("avx512f");
+        assert_eq!(Kernel::Avx2.available(), avx2);
+        assert_eq!(Kernel::Avx512.available(), avx512);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    assert!(!Kernel::Avx2.available() && !Kernel::Avx512.available());
+}
+
 #[test]
 fn the_plain_loop_is_the_product_and_fuses_each_step() {
     // Against faer's product to rounding, on sizes off the blocks.
@@ -89,6 +107,43 @@ fn the_plain_loop_is_the_product_and_fuses_each_step() {
     );
     assert_eq!(c[(0, 0)], x.mul_add(x, -(x * x)));
     assert_ne!(c[(0, 0)], 0.0);
+}
+
+/// A product never reads a sample past the stride: the runs' end is where
+/// the check looks, and a product whose runs end past it is refused.
+#[test]
+fn runs_of_samples_end_after_their_last_sample_and_not_past_the_stride() {
+    let runs = |first, count| Samples {
+        first,
+        step: 12,
+        len: 4,
+        count,
+    };
+    assert_eq!(runs(3, 8).end(), 3 + 7 * 12 + 4);
+    assert_eq!(runs(3, 1).end(), 7);
+    assert_eq!(runs(3, 0).end(), 0);
+    assert_eq!(Samples::first(5).end(), 5);
+    let past = |samples: Samples, stride: usize| {
+        let (v, u) = (filled(17, stride, 0.3), filled(13, stride, 1.9));
+        let mut c = start(17, 13);
+        let mut scratch = vec![0.0; scratch_len(13, samples.total())];
+        std::panic::catch_unwind(move || {
+            gram_product_with(
+                Kernel::Plain,
+                c.as_mut(),
+                Accum::Add,
+                &v,
+                &u,
+                stride,
+                samples,
+                &mut scratch,
+            )
+        })
+        .is_err()
+    };
+    assert!(!past(runs(3, 8), 91));
+    assert!(past(runs(3, 8), 90));
+    assert!(!past(runs(200, 0), 91));
 }
 
 #[test]
