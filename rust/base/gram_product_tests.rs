@@ -17,7 +17,15 @@ fn start(m: usize, p: usize) -> Mat<f64> {
 #[test]
 fn every_kernel_gives_the_plain_loops_bits() {
     // Sizes off every block size, the samples fewer than the stride.
-    for (m, p, stride, k) in [(1, 1, 1, 1), (17, 13, 40, 37), (35, 26, 9, 9), (8, 6, 5, 0)] {
+    // Samples left over past whole fours (37, 9) and fewer than the next
+    // four (6): the packing's registers take fours only.
+    for (m, p, stride, k) in [
+        (1, 1, 1, 1),
+        (17, 13, 40, 37),
+        (35, 26, 9, 9),
+        (9, 7, 8, 6),
+        (8, 6, 5, 0),
+    ] {
         let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
         let mut want = start(m, p);
         plain(want.as_mut(), true, &v, &u, stride, Samples::first(k));
@@ -64,6 +72,35 @@ fn the_kernels_available_are_those_the_processor_runs() {
     }
     #[cfg(not(target_arch = "x86_64"))]
     assert!(!Kernel::Avx2.available() && !Kernel::Avx512.available());
+}
+
+/// Only a `C` whose columns are contiguous is written in place, block by
+/// block: a transposed one (its rows contiguous) gets its sums through the
+/// block buffer, the same bits in their places.
+#[test]
+fn a_transposed_c_gets_the_same_bits_in_their_places() {
+    let (m, p, stride, k) = (37, 29, 40, 40);
+    let (v, u) = (filled(m, stride, 0.3), filled(p, stride, 1.9));
+    for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
+        let mut scratch = vec![f64::NAN; scratch_len(p, k)];
+        let mut want = start(m, p);
+        let samples = Samples::first(k);
+        let mut product = |c: MatMut<'_, f64>| {
+            gram_product_with(kernel, c, Accum::Add, &v, &u, stride, samples, &mut scratch)
+        };
+        product(want.as_mut());
+        let mut rows = start(m, p).transpose().to_owned();
+        product(rows.as_mut().transpose_mut());
+        for j in 0..p {
+            for i in 0..m {
+                assert_eq!(
+                    rows[(j, i)].to_bits(),
+                    want[(i, j)].to_bits(),
+                    "{kernel:?} ({i}, {j})"
+                );
+            }
+        }
+    }
 }
 
 #[test]
