@@ -14,6 +14,13 @@ fn start(m: usize, p: usize) -> Mat<f64> {
     Mat::from_fn(m, p, |i, j| ((i * 3 + j * 5) as f64 * 0.17).cos())
 }
 
+/// Every entry's bits, column by column.
+fn bits(x: &Mat<f64>) -> Vec<u64> {
+    (0..x.ncols())
+        .flat_map(|j| (0..x.nrows()).map(move |i| x[(i, j)].to_bits()))
+        .collect()
+}
+
 #[test]
 fn every_kernel_gives_the_plain_loops_bits() {
     // Sizes off every block size, the samples fewer than the stride.
@@ -91,15 +98,11 @@ fn a_transposed_c_gets_the_same_bits_in_their_places() {
         product(want.as_mut());
         let mut rows = start(m, p).transpose().to_owned();
         product(rows.as_mut().transpose_mut());
-        for j in 0..p {
-            for i in 0..m {
-                assert_eq!(
-                    rows[(j, i)].to_bits(),
-                    want[(i, j)].to_bits(),
-                    "{kernel:?} ({i}, {j})"
-                );
-            }
-        }
+        assert_eq!(
+            bits(&rows.transpose().to_owned()),
+            bits(&want),
+            "{kernel:?}"
+        );
     }
 }
 
@@ -205,12 +208,6 @@ fn a_product_over_runs_of_samples_leaves_out_only_their_zero_products() {
             }
         }
     }
-    let bits = |x: &Mat<f64>| -> Vec<u64> {
-        (0..p)
-            .flat_map(|j| (0..m).map(move |i| (i, j)))
-            .map(|(i, j)| x[(i, j)].to_bits())
-            .collect()
-    };
     let mut whole = start(m, p);
     plain(whole.as_mut(), true, &v, &u, stride, Samples::first(stride));
     for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
@@ -270,12 +267,6 @@ fn small_products_run_on_faer_and_larger_ones_on_the_kernels() {
             1.0,
             Par::Seq,
         );
-        let bits = |x: &Mat<f64>| -> Vec<u64> {
-            (0..p)
-                .flat_map(|j| (0..m).map(move |i| (i, j)))
-                .map(|(i, j)| x[(i, j)].to_bits())
-                .collect()
-        };
         let want = if m * p <= FAER_ENTRIES {
             &faer_bits
         } else {
@@ -306,12 +297,6 @@ fn replacing_c_is_adding_to_zeros_whatever_c_held() {
         (9, 31, 4, 0),
     ] {
         let (v, u) = (filled(m, stride, 0.2), filled(p, stride, 2.9));
-        let bits = |x: &Mat<f64>| -> Vec<u64> {
-            (0..p)
-                .flat_map(|j| (0..m).map(move |i| (i, j)))
-                .map(|(i, j)| x[(i, j)].to_bits())
-                .collect()
-        };
         let mut scratch = vec![f64::NAN; scratch_len(p, k)];
         let samples = Samples::first(k);
         for kernel in [Kernel::Plain, Kernel::Avx2, Kernel::Avx512] {
