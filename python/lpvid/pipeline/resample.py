@@ -87,7 +87,8 @@ def resampled(
         Source of the simulated noise (default 0: the same spread on every
         call).
     progress : callable, optional
-        Called with a line of text as each run starts.
+        Called with a line of text as each run starts (the same line goes
+        to the ``lpvid`` logger at INFO).
 
     Returns
     -------
