@@ -118,3 +118,19 @@ fn the_route_is_chosen_by_the_shape_alone() {
     // Many points of nearly full rank: dense however many parameters.
     assert!(!worth_it(324, 300, 9, 1620));
 }
+
+#[test]
+fn the_factors_own_cost_and_the_fewest_parameters_count_in_the_route() {
+    // Below FEWEST_FREE free parameters the dense step, however cheap the
+    // factors; from it on, the shape decides.
+    assert!(!worth_it(100, 10, 5, FEWEST_FREE - 1));
+    assert!(worth_it(100, 10, 5, FEWEST_FREE));
+    // Two points of rank at most 100, 2000 free parameters: half the dense
+    // factorisation is 2000^3 / 6 = 1.33e9 flops; the reduced system
+    // 3 * 100^2 lti + 200^3 / 3 and the points' factors 2 lti 100^2 / 2
+    // flops, 4e4 lti + 2.7e6 in all: the factored step up to lti = 33266.
+    // Without the factors' own cost the line would be at lti = 44355.
+    assert!(worth_it(33_000, 100, 2, 2000));
+    assert!(!worth_it(34_000, 100, 2, 2000));
+    assert!(!worth_it(44_000, 100, 2, 2000));
+}
