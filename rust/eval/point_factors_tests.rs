@@ -134,3 +134,35 @@ fn the_factors_own_cost_and_the_fewest_parameters_count_in_the_route() {
     assert!(!worth_it(34_000, 100, 2, 2000));
     assert!(!worth_it(44_000, 100, 2, 2000));
 }
+
+#[test]
+fn factors_join_only_over_the_same_shape_and_parameters() {
+    let free: Vec<usize> = (0..24).collect();
+    let factors = |points, rank, free: &[usize]| {
+        pieces(points, 12, rank, 2, free)
+            .factors
+            .expect("the pieces' factors")
+    };
+    let joined = factors(2, 3, &free).join(factors(3, 3, &free));
+    assert_eq!(joined.map(|f| f.ranks()), Some(vec![3; 5]));
+    // Another bound on the ranks, or other free parameters: no one factor.
+    assert!(factors(2, 3, &free).join(factors(2, 4, &free)).is_none());
+    assert!(factors(2, 3, &free)
+        .join(factors(2, 3, &free[..23]))
+        .is_none());
+    // Neither does another number of frozen parameters a point.
+    let other = pieces(2, 8, 3, 3, &free).factors.expect("factors");
+    assert!(factors(2, 3, &free).join(other).is_none());
+}
+
+#[test]
+fn a_newton_system_goes_through_the_factors_only_where_they_cost_less() {
+    let free: Vec<usize> = (0..24).collect();
+    let f = pieces(3, 12, 3, 2, &free)
+        .factors
+        .expect("the pieces' factors");
+    // The reduced system: 6 * 3^2 * 12 + 9^3 / 3 = 891 flops; half the
+    // dense factorisation of n parameters n^3 / 6.
+    assert!(!f.newton_worth_it(17));
+    assert!(f.newton_worth_it(18));
+}
