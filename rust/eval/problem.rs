@@ -31,6 +31,23 @@ pub(crate) fn lines_per_task(shape: &Shape) -> usize {
     (TASK_COLUMNS / (2 * shape.l * shape.r * LANES)).max(1) * LANES
 }
 
+/// Whether unfolding the Gram sums of `points` points of `lti` LTI
+/// parameters goes to the pool. Unfolding a point's sums writes its
+/// `lti^2` entries out of order, counted as 8 flops each: at n = 16 2x2
+/// nine points of 105 000 entries go to the pool, at the gantry's size
+/// five of 3136 not.
+fn unfold_spreads(points: usize, lti: usize) -> bool {
+    worth_spreading(points, (8 * points * lti * lti) as f64)
+}
+
+/// Whether the Hessenberg forms of order `n` at `points` points go to the
+/// pool. A reduction takes about as long as 60 n^3 flops of the Gram
+/// kernels (measured 4 us at n = 10, 12 us at 16): n = 16's nine points
+/// go, the gantry's five of order 6 not.
+fn forms_spread(n: usize, points: usize) -> bool {
+    worth_spreading(points, (60 * n * n * n * points) as f64)
+}
+
 /// Shape, data and basis values of one identification problem.
 #[derive(Debug, Clone)]
 pub struct Problem {
@@ -174,24 +191,19 @@ impl Problem {
         let sums = sums
             .into_sums()
             .ok_or_else(|| Error::Internal("a task's Gram pieces went missing".into()))?;
-        // Unfolding a point's sums writes its `lti^2` entries out of order
-        // (counted as 8 flops each: at n = 16 2x2 nine points of 105 000
-        // entries go to the pool, at the gantry's size five of 3136 not).
-        let unfold = (8 * self.data.n_points() * lti * lti) as f64;
-        let unfolded =
-            spread::map(
-                sums,
-                worth_spreading(self.data.n_points(), unfold),
-                |sum| match sum {
-                    Some(sum) => Ok((sum.gram(&self.shape)?, sum.jtr)),
-                    None => {
-                        let empty = "the Gram matrix of one scheduling point";
-                        Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]))
-                    }
-                },
-            )
-            .into_iter()
-            .collect::<Result<Vec<_>>>()?;
+        let unfolded = spread::map(
+            sums,
+            unfold_spreads(self.data.n_points(), lti),
+            |sum| match sum {
+                Some(sum) => Ok((sum.gram(&self.shape)?, sum.jtr)),
+                None => {
+                    let empty = "the Gram matrix of one scheduling point";
+                    Ok((try_vec(lti * lti, 0.0, empty)?, vec![0.0; lti]))
+                }
+            },
+        )
+        .into_iter()
+        .collect::<Result<Vec<_>>>()?;
         let (grams, jtr): (Vec<Vec<f64>>, Vec<Vec<f64>>) = unfolded.into_iter().unzip();
         let vnls = residual.iter().map(|e| e.norm_sqr()).sum();
         let (gradient, gram) = self.assemble(&grams, &jtr, free)?;
@@ -224,11 +236,8 @@ impl Problem {
 
     /// Hessenberg forms of the frozen models at every point.
     fn forms(&self, theta: &[f64]) -> Vec<Hessenberg> {
-        let (n, points) = (self.shape.n, self.data.n_points());
-        // A Hessenberg reduction takes about as long as 60 n^3 flops of
-        // the Gram kernels (measured 4 us at n = 10, 12 us at 16).
-        let spread = worth_spreading(points, (60 * n * n * n * points) as f64);
-        spread::map(0..points, spread, |q| {
+        let points = self.data.n_points();
+        spread::map(0..points, forms_spread(self.shape.n, points), |q| {
             Hessenberg::new(&self.shape, &Frozen::at(&self.shape, theta, self.psi(q)))
         })
     }
@@ -450,3 +459,7 @@ impl Objective for Problem {
             .collect())
     }
 }
+
+#[cfg(test)]
+#[path = "problem_tests.rs"]
+mod tests;

@@ -180,6 +180,18 @@ mod tests {
         }
     }
 
+    /// The packed triangle's room is taken whole before it is filled: a
+    /// quadratic too large for the memory left fails there, as an error,
+    /// and never in a reallocation halfway through the columns.
+    #[test]
+    fn the_packed_triangle_is_reserved_whole_before_it_is_filled() {
+        for n in [1, 2, 31, 70] {
+            let packed = Packed::of(&symmetric(n)).unwrap();
+            assert_eq!(packed.0.len(), n * (n + 1) / 2, "n {n}");
+            assert_eq!(packed.0.capacity(), n * (n + 1) / 2, "n {n}");
+        }
+    }
+
     #[test]
     fn times_is_the_product_with_the_whole_matrix() {
         let p = symmetric(9);
