@@ -3,6 +3,8 @@
 //! `tests/core_derivatives.rs`.
 
 use super::*;
+use crate::eval::point_factors::pivoted_factor;
+use crate::testing::Lcg;
 
 /// A task holds whole batches of [`LANES`] lines, as many as fit in
 /// [`TASK_COLUMNS`] real residuals, and one batch where even one does not fit.
@@ -37,4 +39,44 @@ fn the_points_go_to_the_pool_at_n16_and_stay_here_at_the_gantrys_size() {
     assert!(!unfold_spreads(5, lti(6, 2, 1)));
     assert!(forms_spread(16, 9));
     assert!(!forms_spread(6, 5));
+}
+
+/// The bound the route's cost is priced with is the rank of a point's Gram
+/// matrix, `n (l + r) + l r`: what the `n^2` similarity transformations
+/// leave of the LTI parameters. Found by the pivoted factorisation of a
+/// generic model's Gram matrix at one point, with lines enough to see it.
+#[test]
+fn a_points_gram_matrix_has_the_rank_its_bound_prices() {
+    let mut rng = Lcg(11);
+    for (n, l, r) in [(4, 2, 1), (4, 1, 3), (2, 2, 2), (6, 1, 1), (8, 3, 2)] {
+        let shape = Shape::new(n, r, l, 0).unwrap();
+        let mut theta: Vec<f64> = (0..shape.len()).map(|_| rng.next_f64()).collect();
+        // A: damped rotations spread over the band (poles near the origin
+        // would leave directions the lines see only below the rank's
+        // tolerance).
+        let mut a = vec![0.0; n * n];
+        for k in 0..n / 2 {
+            let (rho, w) = (0.7, 0.4 + 2.2 * k as f64 / (n / 2) as f64);
+            let (i, j) = (2 * k, 2 * k + 1);
+            a[i + i * n] = rho * w.cos();
+            a[j + j * n] = rho * w.cos();
+            a[i + j * n] = rho * w.sin();
+            a[j + i * n] = -rho * w.sin();
+        }
+        theta[shape.block(Matrix::A, 0)].copy_from_slice(&a);
+        let lines = 40;
+        let z: Vec<C64> = (0..lines)
+            .map(|k| C64::from_polar(1.0, 0.1 + 0.075 * k as f64))
+            .collect();
+        let g = vec![C64::new(0.0, 0.0); lines * l * r];
+        let data = FrfData::new(1, l, r, z, g, &vec![1.0; lines * l * r]).unwrap();
+        let problem = Problem::new(shape, data, &[]).unwrap();
+        let gn = problem
+            .gauss_newton(&theta, &FreeSet::all(problem.shape.len()))
+            .unwrap();
+        let lti = problem.shape.lti_len();
+        let (_, _, rank) = pivoted_factor(&gn.gram, lti).unwrap();
+        assert_eq!(rank, n * (l + r) + l * r, "n {n}, {l} x {r}");
+        assert_eq!(problem.rank_bound(), rank, "n {n}, {l} x {r}");
+    }
 }
