@@ -157,6 +157,20 @@ fn singular_model_is_an_error_not_a_panic() {
     let err = p.cost(&theta).unwrap_err();
     assert_eq!(err, lpvid::Error::Singular { point: 0, line: 0 });
     assert!(p.gauss_newton(&theta, &FreeSet::all(4)).is_err());
+    // The pole on the third line of a batch of four (and on no other):
+    // the error names that line, from the residuals and the Gram pieces.
+    let z = vec![
+        C64::new(0.0, 0.9),
+        C64::new(0.0, -0.9),
+        C64::new(0.5, 0.0),
+        C64::new(0.8, 0.0),
+    ];
+    let data = FrfData::new(1, 1, 1, z, vec![C64::new(1.0, 0.0); 4], &[1.0; 4]).unwrap();
+    let p = Problem::new(shape, data, &[]).unwrap();
+    let at_third = lpvid::Error::Singular { point: 0, line: 2 };
+    assert_eq!(p.cost(&theta).unwrap_err(), at_third);
+    let err = p.gauss_newton(&theta, &FreeSet::all(4)).unwrap_err();
+    assert_eq!(err, at_third);
 }
 
 /// `J^T J` and `J^T r` (all parameters free) against the same sums over the

@@ -4,9 +4,10 @@
 //! the similarity transformations leave, and the same fit on any number
 //! of threads.
 
+use faer::Mat;
 use lpvid::fit::lm::{lm_step, marquardt_diagonal, LmSystem};
 use lpvid::l21::cone_groups;
-use lpvid::socp::{ConeProblem, ConeSolver, ConeStep};
+use lpvid::socp::{ConeProblem, ConeSolver, ConeStep, Pinned, PinnedBasis};
 use lpvid::testing::{on_threads, relative_gap, Lcg};
 use lpvid::{
     frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
@@ -147,6 +148,15 @@ fn a_factored_fit_takes_the_same_steps_on_one_thread_and_on_two() {
 /// The factored and the dense route's cone steps from the start, damping
 /// `mu`, at `gamma`: `(factored, dense)`.
 fn cone_steps(gamma: f64, mus: &[f64]) -> Vec<(ConeStep, ConeStep)> {
+    kept_off_cone_steps(gamma, mus, None)
+}
+
+/// [`cone_steps`], the steps kept off `pinned`'s directions when given.
+fn kept_off_cone_steps(
+    gamma: f64,
+    mus: &[f64],
+    pinned: Option<&PinnedBasis>,
+) -> Vec<(ConeStep, ConeStep)> {
     let (p, start) = problem();
     let free = FreeSet::all(start.len());
     let gn = p.gauss_newton(&start, &free).unwrap();
@@ -167,7 +177,7 @@ fn cone_steps(gamma: f64, mus: &[f64]) -> Vec<(ConeStep, ConeStep)> {
             groups: &groups,
             gamma,
             n_residuals: p.n_residuals() as f64,
-            pinned: None,
+            pinned,
             newton: true,
         };
         problem.solve(mu, &mut ConeSolver::new(1e-10)).unwrap()
@@ -201,6 +211,26 @@ fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
     }
     assert_eq!(zeroed[1..3], [0, 0], "{zeroed:?}");
     assert!(zeroed[3..].iter().all(|&z| z > 0), "{zeroed:?}");
+}
+
+#[test]
+fn a_cone_step_kept_off_directions_never_goes_through_the_points_factors() {
+    // The pinned curvature is not of the factors' form: with it the
+    // factors the evaluation brought are left alone, and the step is the
+    // dense route's to the last bit (through the factors, Newton's
+    // method would solve with a Hessian that lacks that curvature).
+    let nf = problem().1.len();
+    let pinned = Pinned {
+        dirs: Mat::from_fn(nf, 2, |i, k| ((i * (k + 3)) as f64 * 0.37).sin()),
+        exempt: Mat::zeros(nf, 0),
+        weight: 1.0,
+    };
+    let basis = pinned.basis(&vec![1.0; nf]).unwrap().unwrap();
+    for (a, b) in kept_off_cone_steps(1e-3, &[1e-4, 1e-2], Some(&basis)) {
+        assert!(a.status.contains("Newton"), "{}", a.status);
+        assert_eq!(a.iterations, b.iterations);
+        assert_eq!(a.step.unwrap(), b.step.unwrap());
+    }
 }
 
 #[test]
