@@ -148,6 +148,20 @@ fn derivatives_with_fixed_parameters() {
 }
 
 #[test]
+fn derivatives_with_gaps_of_every_width_in_a_block() {
+    // Entries 1, 3 and 4 of A(0) fixed: the free ones run 0 | 2 | 5 6 7 8,
+    // the second run one entry past a gap of one and the third past a gap
+    // of two (runs of consecutive parameters are read from the points'
+    // Gram matrices whole; a gap inside one would read the wrong entries).
+    let shape = Shape::new(3, 2, 2, 2).unwrap();
+    let mut mask = vec![true; shape.len()];
+    for k in [1, 3, 4] {
+        mask[shape.block(Matrix::A, 0).start + k] = false;
+    }
+    check(3, 2, 2, 2, true, Some(mask));
+}
+
+#[test]
 fn singular_model_is_an_error_not_a_panic() {
     let shape = Shape::new(1, 1, 1, 0).unwrap();
     let z = vec![C64::new(0.5, 0.0), C64::new(0.0, 1.0)];
