@@ -37,6 +37,22 @@ pub fn spd_matrix(n: usize, seed: f64) -> faer::Mat<f64> {
     a
 }
 
+/// An `n x n` block diagonal of damped rotations, column-major (`n` even):
+/// block `k` turns by angle `w` at radius `r`, `(r, w) = rotation(k)`. Its
+/// poles are `r e^(+-iw)`, a stable discrete-time `A` for `r < 1`.
+pub fn damped_rotations(n: usize, rotation: impl Fn(usize) -> (f64, f64)) -> Vec<f64> {
+    let mut a = vec![0.0; n * n];
+    for k in 0..n / 2 {
+        let (r, w) = rotation(k);
+        let (i, j) = (2 * k, 2 * k + 1);
+        a[i + i * n] = r * w.cos();
+        a[j + j * n] = r * w.cos();
+        a[i + j * n] = r * w.sin();
+        a[j + i * n] = -r * w.sin();
+    }
+    a
+}
+
 /// `||a - b|| / ||b||`: how far a vector is from a reference.
 pub fn relative_gap(a: &[f64], b: &[f64]) -> f64 {
     let gap = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>();

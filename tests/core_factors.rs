@@ -8,7 +8,7 @@ use faer::Mat;
 use lpvid::fit::lm::{lm_step, marquardt_diagonal, LmSystem};
 use lpvid::l21::cone_groups;
 use lpvid::socp::{ConeProblem, ConeSolver, ConeStep, Pinned, PinnedBasis};
-use lpvid::testing::{on_threads, relative_gap, Lcg};
+use lpvid::testing::{damped_rotations, on_threads, relative_gap, Lcg};
 use lpvid::{
     frequency_response, levenberg_marquardt, FreeSet, FrfData, L21Settings, LmSettings, Matrix,
     ModelAt, Problem, Shape, Silent,
@@ -40,15 +40,7 @@ fn model() -> (Shape, Vec<f64>, Vec<C64>) {
     let mut rng = Lcg(3);
     let mut theta: Vec<f64> = (0..shape.len()).map(|_| 0.3 * rng.next_f64()).collect();
     // A(0): eight damped rotations; A(1..3) small beside them.
-    let mut a0 = vec![0.0; N * N];
-    for k in 0..N / 2 {
-        let (r, w) = (0.6 + 0.03 * k as f64, 0.2 + 0.35 * k as f64);
-        let (i, j) = (2 * k, 2 * k + 1);
-        a0[i + i * N] = r * w.cos();
-        a0[j + j * N] = r * w.cos();
-        a0[i + j * N] = r * w.sin();
-        a0[j + i * N] = -r * w.sin();
-    }
+    let a0 = damped_rotations(N, |k| (0.6 + 0.03 * k as f64, 0.2 + 0.35 * k as f64));
     theta[shape.block(Matrix::A, 0)].copy_from_slice(&a0);
     for i in 1..4 {
         for v in &mut theta[shape.block(Matrix::A, i)] {

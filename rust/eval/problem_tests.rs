@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::eval::point_factors::pivoted_factor;
-use crate::testing::Lcg;
+use crate::testing::{damped_rotations, Lcg};
 
 /// A task holds whole batches of [`LANES`] lines, as many as fit in
 /// [`TASK_COLUMNS`] real residuals, and one batch where even one does not fit.
@@ -54,15 +54,7 @@ fn a_points_gram_matrix_has_the_rank_its_bound_prices() {
         // A: damped rotations spread over the band (poles near the origin
         // would leave directions the lines see only below the rank's
         // tolerance).
-        let mut a = vec![0.0; n * n];
-        for k in 0..n / 2 {
-            let (rho, w) = (0.7, 0.4 + 2.2 * k as f64 / (n / 2) as f64);
-            let (i, j) = (2 * k, 2 * k + 1);
-            a[i + i * n] = rho * w.cos();
-            a[j + j * n] = rho * w.cos();
-            a[i + j * n] = rho * w.sin();
-            a[j + i * n] = -rho * w.sin();
-        }
+        let a = damped_rotations(n, |k| (0.7, 0.4 + 2.2 * k as f64 / (n / 2) as f64));
         theta[shape.block(Matrix::A, 0)].copy_from_slice(&a);
         let lines = 40;
         let z: Vec<C64> = (0..lines)
