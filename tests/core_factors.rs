@@ -138,17 +138,9 @@ fn a_factored_fit_takes_the_same_steps_on_one_thread_and_on_two() {
 }
 
 /// The factored and the dense route's cone steps from the start, damping
-/// `mu`, at `gamma`: `(factored, dense)`.
-fn cone_steps(gamma: f64, mus: &[f64]) -> Vec<(ConeStep, ConeStep)> {
-    kept_off_cone_steps(gamma, mus, None)
-}
-
-/// [`cone_steps`], the steps kept off `pinned`'s directions when given.
-fn kept_off_cone_steps(
-    gamma: f64,
-    mus: &[f64],
-    pinned: Option<&PinnedBasis>,
-) -> Vec<(ConeStep, ConeStep)> {
+/// `mu`, at `gamma`, kept off `pinned`'s directions when given:
+/// `(factored, dense)`.
+fn cone_steps(gamma: f64, mus: &[f64], pinned: Option<&PinnedBasis>) -> Vec<(ConeStep, ConeStep)> {
     let (p, start) = problem();
     let free = FreeSet::all(start.len());
     let gn = p.gauss_newton(&start, &free).unwrap();
@@ -187,7 +179,7 @@ fn a_big_problems_cone_step_through_its_points_factors_is_the_dense_step() {
     let mut zeroed = Vec::new();
     for gamma in [1e-3, 1.0] {
         let mus = [1e-8, 1e-4, 1e-2];
-        for ((a, b), mu) in cone_steps(gamma, &mus).into_iter().zip(mus) {
+        for ((a, b), mu) in cone_steps(gamma, &mus, None).into_iter().zip(mus) {
             assert!(a.status.contains("Newton") && b.status.contains("Newton"));
             assert_eq!(a.iterations, b.iterations, "gamma {gamma} mu {mu}");
             assert_eq!(a.zeroed, b.zeroed, "gamma {gamma} mu {mu}");
@@ -211,14 +203,14 @@ fn a_cone_step_kept_off_directions_never_goes_through_the_points_factors() {
     // factors the evaluation brought are left alone, and the step is the
     // dense route's to the last bit (through the factors, Newton's
     // method would solve with a Hessian that lacks that curvature).
-    let nf = problem().1.len();
+    let nf = model().0.len();
     let pinned = Pinned {
         dirs: Mat::from_fn(nf, 2, |i, k| ((i * (k + 3)) as f64 * 0.37).sin()),
         exempt: Mat::zeros(nf, 0),
         weight: 1.0,
     };
     let basis = pinned.basis(&vec![1.0; nf]).unwrap().unwrap();
-    for (a, b) in kept_off_cone_steps(1e-3, &[1e-4, 1e-2], Some(&basis)) {
+    for (a, b) in cone_steps(1e-3, &[1e-4, 1e-2], Some(&basis)) {
         assert!(a.status.contains("Newton"), "{}", a.status);
         assert_eq!(a.iterations, b.iterations);
         assert_eq!(a.step.unwrap(), b.step.unwrap());
@@ -232,7 +224,7 @@ fn a_factored_cone_step_that_newton_gives_up_on_is_the_cone_solvers_on_the_whole
     // complement the factored route left to its products; its step is
     // the dense route's (solved by Newton's method) to the solvers'
     // tolerances. Without the complement it is 40 % off.
-    let (a, b) = cone_steps(1e-3, &[1e-10]).remove(0);
+    let (a, b) = cone_steps(1e-3, &[1e-10], None).remove(0);
     assert!(
         !a.status.contains("Newton"),
         "{}: not the fallback",

@@ -45,6 +45,8 @@ fn the_points_go_to_the_pool_at_n16_and_stay_here_at_the_gantrys_size() {
 /// matrix, `n (l + r) + l r`: what the `n^2` similarity transformations
 /// leave of the LTI parameters. Found by the pivoted factorisation of a
 /// generic model's Gram matrix at one point, with lines enough to see it.
+/// (Far from a tie: the unit-diagonal Gram matrices' eigenvalues kept are
+/// 4.6e-3 and above, those dropped 2e-15 and below, the tolerance 1e-12.)
 #[test]
 fn a_points_gram_matrix_has_the_rank_its_bound_prices() {
     let mut rng = Lcg(11);
