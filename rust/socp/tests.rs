@@ -316,6 +316,42 @@ fn a_group_newtons_method_finds_on_its_way_to_zero_is_held_there() {
 }
 
 #[test]
+fn newtons_iterations_before_it_gives_up_are_counted_with_clarabels() {
+    // P = [[1, 2], [2, 1]] (M = 2, mu = 0: H = P, a unit diagonal, so the
+    // scale is 1) has the eigenvalue -1 along (1, -1), and the group's
+    // curvature (gamma 1e-3) is far too small to lift it: Newton's method
+    // gives up at its first factorisation and Clarabel takes the program.
+    // Whatever Clarabel makes of it, the round reports Newton's one
+    // iteration on top of Clarabel's own.
+    let p = DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0]);
+    let q = DVector::from_vec(vec![0.5, -0.25]);
+    let c = case(
+        p,
+        q,
+        0.0,
+        vec![1.0, 0.5],
+        vec![group(&[0, 1], 1.0, 1.0)],
+        1e-3,
+        2.0,
+    );
+    assert_eq!(c.cone().jacobi_scale(0.0), vec![1.0, 1.0]);
+    let alone = ConeProblem {
+        newton: false,
+        ..c.cone()
+    };
+    let clarabel = alone.solve(c.mu, &mut ConeSolver::new(1e-10)).unwrap();
+    let both = c.solve();
+    assert!(clarabel.iterations > 0, "{clarabel:?}");
+    assert_eq!(both.status, clarabel.status);
+    assert_eq!(both.solves, 1, "{both:?}");
+    assert_eq!(
+        both.iterations,
+        clarabel.iterations + 1,
+        "{both:?} against {clarabel:?}"
+    );
+}
+
+#[test]
 fn a_resting_group_on_its_bound_stays_at_zero() {
     // theta_g = 0 and a gradient at the check's own tolerance,
     // bound (1 + 1e-9) with bound = 1 exactly: not put back.
