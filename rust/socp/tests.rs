@@ -352,6 +352,30 @@ fn newtons_iterations_before_it_gives_up_are_counted_with_clarabels() {
 }
 
 #[test]
+fn newtons_iterations_up_to_a_kink_it_cannot_hold_are_counted() {
+    // The program of the group held at zero above, with a third, fixed
+    // entry of 1e-8 in the group: its free entries head for zero as
+    // before, but the group cannot be held there (its fixed entry is off
+    // zero), so Newton's method stops at the kink and Clarabel solves the
+    // program. The round reports Newton's iterations on top of Clarabel's.
+    let mut c = single([0.2, 0.2], [0.01, -0.02]);
+    c.theta.push(1e-8);
+    c.groups[0].entries.push((2, None));
+    let alone = ConeProblem {
+        newton: false,
+        ..c.cone()
+    };
+    let clarabel = alone.solve(c.mu, &mut ConeSolver::new(1e-10)).unwrap();
+    let both = c.solve();
+    assert_eq!(both.status, clarabel.status);
+    assert_eq!((both.solves, clarabel.solves), (1, 1));
+    assert!(
+        both.iterations > clarabel.iterations,
+        "{both:?} against {clarabel:?}"
+    );
+}
+
+#[test]
 fn a_resting_group_on_its_bound_stays_at_zero() {
     // theta_g = 0 and a gradient at the check's own tolerance,
     // bound (1 + 1e-9) with bound = 1 exactly: not put back.
