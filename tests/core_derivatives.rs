@@ -311,6 +311,15 @@ fn gram_matches_the_rows_of_the_jacobian_over_several_tasks_a_point() {
     check_rows_of(&p, &theta);
 }
 
+/// Several blocks of samples a task (SISO: 512 lines a task, 256 samples a
+/// block): the block's products are flushed into the sums in the middle of
+/// a task, and the next block's samples go into the same buffers.
+#[test]
+fn gram_matches_the_rows_of_the_jacobian_over_several_blocks_a_task() {
+    let (p, theta) = problem_of(4, 1, 1, 1, true, &[-0.5, 0.5], 600);
+    check_rows_of(&p, &theta);
+}
+
 #[test]
 fn the_response_of_a_sum_is_that_of_its_parts_one_after_the_other() {
     let (a, theta) = problem(2, 1, 2, 1, true);
