@@ -487,3 +487,7 @@ fn lti_index(shape: &Shape, a: usize, b: usize) -> usize {
     let rows = if a < n { n } else { shape.l };
     shape.lti_offset(x) + row + col * rows
 }
+
+#[cfg(test)]
+#[path = "kron_gram_tests.rs"]
+mod tests;
