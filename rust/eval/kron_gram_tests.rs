@@ -111,3 +111,31 @@ fn a_block_holds_the_samples_of_whole_batches_and_at_least_block_samples() {
         assert_eq!(KronGram::new(&shape).unwrap().cols(), cols);
     }
 }
+
+#[test]
+fn its_bytes_are_those_of_its_buffers_and_sums() {
+    // What the memory estimates count (`lpvid.fit_memory`, the workspaces
+    // kept between evaluations): the four sample buffers and the products'
+    // scratch, `S1` and `S2`, and the `J^T r` of the part it hands back.
+    for (n, r, l) in [(4, 1, 1), (6, 2, 1), (6, 1, 3), (5, 3, 3), (5, 5, 4)] {
+        let shape = Shape::new(n, r, l, 0).unwrap();
+        let mut acc = KronGram::new(&shape).unwrap();
+        let entries = |m: &Mat<f64>| m.nrows() * m.ncols();
+        let buffers = [&acc.u_re, &acc.u_im, &acc.v_re, &acc.v_im, &acc.panels]
+            .iter()
+            .map(|b| b.len())
+            .sum::<usize>();
+        let part = acc.finish(&shape, KronGram::sums(&shape).unwrap());
+        let sums = entries(&part.s1) + entries(&part.s2);
+        assert_eq!(
+            GramParts::bytes(&shape),
+            8 * (sums + part.jtr.len()),
+            "({n}, {r}, {l})"
+        );
+        assert_eq!(
+            KronGram::bytes(&shape),
+            8 * (buffers + sums + part.jtr.len()),
+            "({n}, {r}, {l})"
+        );
+    }
+}
