@@ -33,7 +33,7 @@ fn add_lines(acc: &mut KronGram, shape: &Shape, form: &Hessenberg, lines: &[C64]
             .expect("a stable model is regular on the imaginary axis");
         let mut w = vec![[0.0; LANES]; lr];
         let mut err = vec![Cx::default(); lr];
-        for lane in 0..end - first {
+        for lane in (first..end).map(|k| k - first) {
             for e in 0..lr {
                 w[e][lane] = 0.5 + rng.next_f64();
                 err[e].re[lane] = rng.next_f64() - 0.5;
