@@ -45,6 +45,34 @@ def test_polynomial_sup_norms_from_the_corners_are_a_dense_grids_maximum(seed):
         assert np.array_equal(b.sup_norms(box if n_params > 1 else box[0]), dense)
 
 
+def test_sup_norms_found_again_are_the_first_and_a_bad_range_is_refused_every_time():
+    # A polynomial basis keeps the sup norms of a range it has seen (every
+    # model built checks its range by them): the second answer is the
+    # first without evaluating the basis again, the caller's copy is
+    # theirs to change, a refused range is refused again, and a copy sent
+    # to another process is the same bytes as a fresh basis.
+    import pickle
+
+    b = lpvid.Polynomial(3, domain=(1.0, 100.0), scale="log")
+    fresh = pickle.dumps(b)
+    calls = []
+    evaluate = b._evaluate
+    b._evaluate = lambda p: calls.append(len(p)) or evaluate(p)
+    first = b.sup_norms((2.0, 50.0))
+    assert len(calls) == 1
+    first[:] = -1.0
+    again = b.sup_norms((2.0, 50.0))
+    assert len(calls) == 1
+    other = lpvid.Polynomial(3, domain=(1.0, 100.0), scale="log")
+    assert np.array_equal(again, other.sup_norms((2.0, 50.0))) and np.all(again > 0)
+    assert not np.array_equal(b.sup_norms((10.0, 20.0)), again) and len(calls) == 2
+    for _ in range(2):
+        with pytest.raises(ValueError, match="p_range"):
+            b.sup_norms((-1.0, 50.0))
+    del b._evaluate
+    assert pickle.dumps(b) == fresh
+
+
 def test_legendre_sup_norms_inside_the_domain_are_not_at_the_corners():
     # P2(s) = (3 s^2 - 1) / 2 is largest in size at s = 0 on [-0.5, 0.5]
     # (|-0.5| against 0.125 at the ends): the grid finds it.

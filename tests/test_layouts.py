@@ -190,3 +190,30 @@ def test_core_fit_settings_name_a_bad_key(case):
         _core.l21_path(problem, start.theta, sup, np.array([1e-2]), None, {"max_outer": 1.5})
     with pytest.raises(TypeError, match="settings"):
         _core.cone_step(problem, start.theta, sup, None, [("gamma", 1.0)], 1.0)
+
+
+@pytest.mark.parametrize("layout", LAYOUTS.values(), ids=LAYOUTS.keys())
+def test_with_theta_gives_the_constructors_model_with_its_own_arrays(case, layout, rng):
+    """``with_theta`` skips the constructor's checks; what it builds is the constructor's."""
+    start, _ = case
+    theta = start.theta + rng.normal(size=start.theta.size)
+    given = layout(theta.copy())
+    model = start.with_theta(given)
+    # The constructor's model from the same values, the parts cut by hand.
+    parts, at = [], 0
+    for x in start.matrices().values():
+        k, rows, cols = x.shape
+        parts.append(theta[at : at + x.size].reshape(k, cols, rows).transpose(0, 2, 1))
+        at += x.size
+    ref = lpvid.LpvModel(*parts, basis=start.basis, Ts=start.Ts, p_range=start.p_range)
+    assert model.theta.tobytes() == ref.theta.tobytes() == theta.tobytes()
+    for mine, theirs in zip(model.matrices().values(), ref.matrices().values(), strict=True):
+        assert mine.dtype == np.float64 and mine.flags.c_contiguous and not mine.flags.writeable
+        assert mine.tobytes() == theirs.tobytes()
+        assert not np.shares_memory(mine, given)
+    assert model.p_range == ref.p_range and model.Ts == ref.Ts and model.basis is start.basis
+    assert model.info == {} and model == ref
+    given[:] = 0.0  # the caller's array is theirs to change
+    assert model.theta.tobytes() == theta.tobytes()
+    with pytest.raises(ValueError, match=r"^theta: contains NaN"):
+        start.with_theta(np.where(np.arange(theta.size) == 3, np.nan, theta))
