@@ -181,28 +181,20 @@ class LpvModel:
         size = sum(x.size for x in self.matrices().values())
         if t.size != size:
             raise ValueError(f"theta: expected {size} parameters, got {t.size}")
-        out = []
+        # Built without the constructor's checks, which these pass by
+        # construction: finite C-ordered float64 arrays of this model's
+        # shapes, a range already checked against the basis. The fits build
+        # a model for every result (measured: the checks again took 0.017 s
+        # of the threads' time in a small ``identify``).
+        model = object.__new__(LpvModel)
         start = 0
-        for x in self.matrices().values():
+        for name, x in self.matrices().items():
             k, rows, cols = x.shape
             part = t[start : start + x.size].reshape(k, cols, rows).transpose(0, 2, 1)
-            out.append(np.array(part, order="C"))
-            start += x.size
-        return self._like(*out)
-
-    def _like(self, *coefficients: NDArray[np.float64]) -> LpvModel:
-        """A model of this one's basis, ``Ts`` and ``p_range`` with these ``A, B, C, D``.
-
-        Without the constructor's checks, which these pass by construction:
-        finite C-ordered float64 arrays of this model's shapes, a range
-        already checked against the basis. The fits build a model for
-        every result (measured: the checks again took 0.017 s of the
-        threads' time in a small ``identify``).
-        """
-        model = object.__new__(LpvModel)
-        for arr in coefficients:
+            arr = np.array(part, order="C")
             arr.setflags(write=False)
-        model.A, model.B, model.C, model.D = coefficients
+            setattr(model, name, arr)
+            start += x.size
         model.basis, model.Ts, model.p_range = self.basis, self.Ts, self.p_range
         model.info = {}
         return model
