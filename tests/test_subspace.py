@@ -256,6 +256,8 @@ def test_each_refinement_ends_where_a_step_buys_less_than_ftol(rng, ftol):
         again = lpvid.fit_nls(loc.initial[q], data.subset([q]), ftol=tol, warn=False)
         np.testing.assert_array_equal(m.theta, again.model.theta)
         assert m.info["n_iter"] == again.n_iter
+        # the V_NLS kept (the fit's own) is the kept model's, to the bit
+        assert loc.vnls[q] == again.vnls == lpvid.vnls(m, data.subset([q]))
         if again.stop == "cost_change" and tol > 1e-10:
             # the last accepted step bought less than tol of V_NLS, none before it did
             v = [lpvid.vnls(loc.initial[q], data.subset([q]))]

@@ -286,15 +286,20 @@ def _refined(
 ) -> tuple[LpvModel, bool, tuple[bool, float]]:
     """One start refined (when ``refine``), whether it converged, and its rank among the point's.
 
-    The rank: unstable after stable when ``stable``, then V_NLS.
+    The rank: unstable after stable when ``stable``, then V_NLS (the fit's
+    own, which is the refined model's to the last bit: the core's cost and
+    its Gauss-Newton pieces give the same V_NLS).
     """
-    model, ok = _refine(start, point, fixed, max_iter, ftol) if refine else (start, True)
-    return model, ok, (stable and not is_stable(model), vnls(model, point))
+    if refine:
+        model, ok, cost = _refine(start, point, fixed, max_iter, ftol)
+    else:
+        model, ok, cost = start, True, vnls(start, point)
+    return model, ok, (stable and not is_stable(model), cost)
 
 
 def _refine(
     start: LpvModel, data: FrfData, fixed: Any, max_iter: int, ftol: float
-) -> tuple[LpvModel, bool]:
+) -> tuple[LpvModel, bool, float]:
     result = raise_if_interrupted(
         fit_nls(start, data, fixed, max_iter=max_iter, ftol=ftol, warn=False)
     )
@@ -305,4 +310,4 @@ def _refine(
         "n_iter": int(result.n_iter),
     }
     model = LpvModel(*result.model.matrices().values(), basis=start.basis, Ts=start.Ts, info=info)
-    return model, bool(result.converged)
+    return model, bool(result.converged), float(result.vnls)
