@@ -38,13 +38,18 @@ use faer::{Accum, Mat};
 /// A pivot of the unit-diagonal `H_q` below this ends its factorisation.
 pub const RANK_TOL: f64 = 1e-12;
 
+/// Fewest free parameters for the factored step: below, the dense
+/// factorisation is a few milliseconds and the models keep the bits they
+/// have always had (the gantry, the 9 x 9 grid, n = 10).
+pub const FEWEST_FREE: usize = 1000;
+
 /// Whether the factored step costs at most half the dense one, by the
 /// shape alone: `n_points` points of `lti` frozen parameters each, whose
 /// Gram matrices have rank at most `bound`, and `n_free` free parameters.
-/// Small problems too: a SISO local fit of order 10 (120 parameters of
-/// rank 21) or the gantry (280 of rank 100) take the factored step, a
-/// sixth less time a Levenberg-Marquardt step (`docs/performance.md`).
 pub fn worth_it(lti: usize, bound: usize, n_points: usize, n_free: usize) -> bool {
+    if n_free < FEWEST_FREE {
+        return false;
+    }
     let factors = (n_points * lti) as f64 * (bound * bound) as f64 / 2.0;
     factors + solve_cost(lti, bound, n_points) <= half_dense(n_free)
 }
