@@ -1,5 +1,7 @@
 """numpy's BLAS on one thread inside lpvid's entry points (lpvid._threads)."""
 
+import json
+
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
@@ -87,3 +89,101 @@ def test_an_entry_point_on_another_thread_within_a_limited_run_sets_no_limit(cou
         assert _blas_threads() == before
     assert all(n == {1} for n in seen)
     assert len(counted) == 1
+
+
+@pytest.fixture
+def blas_restored():
+    """The process's BLAS threads as they were before the test, whatever it did to them."""
+    before = threadpool_info()
+    yield
+    threads._release_control()
+    for lib in before:
+        threadpool_limits(limits={lib["filepath"]: lib["num_threads"]})
+    threads._release_control()
+
+
+def _on_a_thread(fn):
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(fn).result()
+
+
+def test_the_last_to_return_on_another_thread_restores_the_callers_setting(blas_restored):
+    """Entered on this thread, left last on another (as select's interrupted run ends on a
+    pool thread): threadpoolctl 3.8 ignores every thread but the one that set a limit first."""
+    import threading
+
+    if not _blas_threads():
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    threadpool_limits(limits=2, user_api="blas")
+    before = _blas_threads()
+    inside, entered, main_left = [], threading.Event(), threading.Event()
+
+    @threads.single_blas
+    def piece():
+        entered.set()
+        main_left.wait(10)
+        inside.append(_blas_threads())
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        threads._enter()
+        try:
+            running = pool.submit(piece)
+            entered.wait(10)
+        finally:
+            threads._leave()
+        main_left.set()
+        running.result()
+    assert inside == [{1}]
+    assert _blas_threads() == before
+
+
+def test_an_entry_point_on_another_thread_limits_after_one_on_this_thread(blas_restored):
+    """After a run on the main thread, a run on a pool thread is limited too, and restored."""
+
+    @threads.single_blas
+    def run():
+        return _blas_threads()
+
+    if not _blas_threads():
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    threadpool_limits(limits=2, user_api="blas")
+    before = _blas_threads()
+    assert run() == {1}
+    assert _on_a_thread(run) == {1}
+    assert _blas_threads() == before
+    # and the caller keeps the control of its own limits
+    threadpool_limits(limits=1, user_api="blas")
+    assert _blas_threads() == {1}
+
+
+def test_scipy_loaded_by_the_first_run_is_limited_too(tmp_path):
+    """A fresh process: scipy's own BLAS (loaded by the run, after lpvid's import) on one thread."""
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, json\n"
+        "import lpvid._threads as t\n"
+        "from threadpoolctl import threadpool_info\n"
+        "assert 'scipy.linalg' not in sys.modules\n"
+        "def libs(): return {i['filepath']: i['num_threads'] for i in threadpool_info()"
+        " if i['user_api'] == 'blas'}\n"
+        "before = libs()\n"
+        "@t.single_blas\n"
+        "def run():\n"
+        "    import scipy.linalg\n"
+        "    return libs()\n"
+        "print(json.dumps([before, run(), libs()]))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True, timeout=120
+    )
+    before, inside, after = json.loads(out.stdout)
+    if not before:
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    assert len(inside) >= len(before) and set(inside.values()) == {1}, inside
+    assert all(after[k] == v for k, v in before.items()), (before, after)

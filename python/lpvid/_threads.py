@@ -13,6 +13,24 @@ those that run meanwhile (nested ones, and the pieces of a run on its
 threads: the local models, the SMILE candidates, ...) leave it as it is.
 threadpoolctl looks up the loaded libraries at every call (0.8 ms; a small
 ``identify`` hands out some fifty pieces).
+
+Two things make the limit hold whichever thread sets and restores it:
+
+- scipy's own OpenBLAS (its wheels bundle one beside numpy's) is loaded
+  before the limit is set: a library loaded later keeps its own threads,
+  and scipy is otherwise first imported inside a run, so the first run of
+  a process ran scipy's LAPACK on every core and later runs on one.
+- threadpoolctl 3.8 lets one thread only, the first that sets a limit on a
+  pthreads OpenBLAS, change it for as long as it lives, and ignores the
+  others' calls without a word; a limit set without its context manager
+  (as here, where the first entry point to start and the last to return
+  may be on different threads) keeps that thread in control. Measured
+  before this was handled: an interrupted ``select`` (its last run ending
+  on a pool thread) left the caller's numpy on one thread, after which
+  the data that ``lpvid.testing.noisy_data`` simulates for a 101-state
+  model took other last bits; and after one call on the main thread, the
+  runs on other threads were not limited at all. Control is released
+  before the limit is set and on both sides of its restoring.
 """
 
 from __future__ import annotations
@@ -22,6 +40,7 @@ import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
+import threadpoolctl
 from threadpoolctl import threadpool_limits
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -31,9 +50,20 @@ _lock = threading.Lock()
 _held: dict[str, Any] = {"count": 0, "limit": None}
 
 
+def _release_control() -> None:
+    """Let the next thread that sets a BLAS limit have it (threadpoolctl 3.8 and later)."""
+    controller = getattr(threadpoolctl, "OpenBLASController", None)
+    clear = getattr(controller, "clear_controlling_thread", None)
+    if clear is not None:
+        clear(force=True)
+
+
 def _enter() -> None:
     with _lock:
         if _held["count"] == 0:
+            import scipy.linalg  # noqa: F401  (loads scipy's own BLAS, so that the limit holds it)
+
+            _release_control()
             _held["limit"] = threadpool_limits(limits=1, user_api="blas")
         _held["count"] += 1
 
@@ -43,7 +73,9 @@ def _leave() -> None:
         _held["count"] -= 1
         if _held["count"] == 0:
             limit, _held["limit"] = _held["limit"], None
+            _release_control()
             limit.restore_original_limits()
+            _release_control()
 
 
 def single_blas(fn: F) -> F:
