@@ -172,12 +172,11 @@ def local_models(
     points = [data.subset([q]) for q in range(data.n_points)]
     # Every point's subspace starts here, then every start's refinement a
     # piece (a point's starts take from 2 to 100 steps: one piece per start
-    # keeps the threads evenly busy). The starts are numpy's LAPACK work,
-    # whose last bits can depend on the thread that calls it: OpenBLAS with
-    # its thread count set at run time gave identify_lti's n = 24 3x3 starts
-    # 1e-9 apart on a pool's threads after a run on this one, and five of
-    # nine local models changed. The refinements are the core's, the same
-    # on any thread.
+    # keeps the threads evenly busy). The starts are numpy's work on small
+    # arrays, which holds the GIL: on two threads they took twice the time
+    # each and the stage no less (docs/performance.md, 2026-12-02). They
+    # would give the same bits there (BLAS on one thread wherever an entry
+    # point runs, lpvid._threads). The refinements are the core's.
     starts = [_point_starts(pt, n, rows, stable, strictly_proper) for pt in points]
     fixed = {"D": True} if strictly_proper else None
     calls = [
