@@ -247,7 +247,7 @@ def test_pole_uncertainty_against_finite_differences(rng):
     np.testing.assert_allclose(u, np.sqrt(var) / np.abs(np.log(lam)), rtol=1e-4)
 
 
-def test_the_covariance_and_band_are_the_same_whatever_the_callers_blas_threads():
+def test_the_covariance_and_band_are_the_same_whatever_the_callers_blas_threads(blas_threads):
     """covariance, frf_std, lti_covariance, pole_std run on one BLAS thread, as in the pipeline.
 
     Called with numpy's BLAS on two threads they gave other last bits (the
@@ -256,24 +256,21 @@ def test_the_covariance_and_band_are_the_same_whatever_the_callers_blas_threads(
     thread setting, and differed from those of ``identify``.
     """
     from systems import SYNTHETIC, SYNTHETIC_FREQS, synthetic_data
-    from threadpoolctl import threadpool_info, threadpool_limits
 
-    if not any(lib["user_api"] == "blas" for lib in threadpool_info()):
-        pytest.skip("no BLAS library that threadpoolctl controls")
     data = synthetic_data([0.02, 0.45, 1.0], seed=5)
     p = np.linspace(0.02, 1.0, 101)
     seen = []
     for threads in (1, 2):
-        with threadpool_limits(limits=threads, user_api="blas"):
-            with pytest.warns(lpvid.ConvergenceWarning, match="singular"):  # three points
-                cov = lpvid.covariance(SYNTHETIC, data)
-            seen.append(
-                (
-                    cov.theta,
-                    cov.frf_std(SYNTHETIC_FREQS, p),
-                    cov.lti_covariance(p),
-                    cov.pole_std(0.3),
-                )
+        blas_threads(threads)
+        with pytest.warns(lpvid.ConvergenceWarning, match="singular"):  # three points
+            cov = lpvid.covariance(SYNTHETIC, data)
+        seen.append(
+            (
+                cov.theta,
+                cov.frf_std(SYNTHETIC_FREQS, p),
+                cov.lti_covariance(p),
+                cov.pole_std(0.3),
             )
+        )
     for one, two in zip(*seen, strict=True):
         np.testing.assert_array_equal(one, two)
