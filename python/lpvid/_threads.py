@@ -5,14 +5,19 @@ thread pool. numpy's BLAS (OpenBLAS) starts threads of its own for the small
 dense problems of the initial estimates (QR, SVD, least squares), and the
 two pools then fight over the cores: measured on a 2-core machine, a
 3000 x 400 QR took 1.4-1.8 s with OpenBLAS's threads and 0.14-0.24 s with
-one. The pipeline entry points run with BLAS limited to one thread (through
-threadpoolctl) and restore the caller's setting on return. The limit is
-process-wide, and so is its count here: the first entry point to start (in
-any thread) sets it, the last to return restores the caller's setting, and
-those that run meanwhile (nested ones, and the pieces of a run on its
-threads: the local models, the SMILE candidates, ...) leave it as it is.
-threadpoolctl looks up the loaded libraries at every call (0.8 ms; a small
-``identify`` hands out some fifty pieces).
+one. On one thread the results are also the same on any number of cores
+(on two, OpenBLAS took other last bits for a 12-state 2x2 subspace
+estimate). The pipeline entry points, and the public functions whose numpy
+work is dense linear algebra (``fd_subspace``, ``order_hints``,
+``consistency``, ``refit``, ``stability``, ``rate_stability``, ``max_rate``,
+``estimate_frf``, ``next_points``), run with BLAS limited to one thread
+(through threadpoolctl) and restore the caller's setting on return. The
+limit is process-wide, and so is its count here: the first entry point to
+start (in any thread) sets it, the last to return restores the caller's
+setting, and those that run meanwhile (nested ones, and the pieces of a
+run on its threads: the local models, the SMILE candidates, ...) leave it
+as it is. threadpoolctl looks up the loaded libraries at every call (0.8
+ms; a small ``identify`` hands out some fifty pieces).
 
 Two things make the limit hold whichever thread sets and restores it:
 

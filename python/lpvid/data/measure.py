@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import generator, positive_float, positive_int, real_array
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 
 __all__ = ["Multisine", "multisine", "estimate_frf"]
@@ -259,6 +260,7 @@ def _lines(freqs_hz: Any, period: int, fs: float) -> tuple[NDArray[np.float64], 
     return freqs, lines
 
 
+@single_blas
 def estimate_frf(
     u: ArrayLike,
     y: ArrayLike,

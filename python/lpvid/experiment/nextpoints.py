@@ -404,6 +404,7 @@ def _by_committee(
     )
 
 
+@single_blas
 def next_points(
     result: IdentifyResult, candidates: ArrayLike | None = None, k: int = 1, *, sigma: Any = None
 ) -> NDArray[np.float64]:

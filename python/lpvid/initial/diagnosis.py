@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import positive_float, positive_int
 from lpvid._rows import unique_rows
+from lpvid._threads import single_blas
 from lpvid.data.schedule import unit_scaled
 from lpvid.initial.localmodels import Consistency, local_p, lti_models
 from lpvid.initial.poles import describe_pole, is_real, match_poles, pole_coordinates
@@ -34,6 +35,7 @@ def _neighbours(s: Arr, k: int) -> list[tuple[int, int]]:
     return sorted(pairs)
 
 
+@single_blas
 def consistency(
     local_models: Any,
     p: ArrayLike | None = None,

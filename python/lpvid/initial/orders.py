@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from lpvid._checks import positive_int
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.initial.subspace import max_order, singular_values
 
@@ -60,6 +61,7 @@ class OrderHints:
         return "order hints (drop of the subspace singular values): " + ", ".join(parts)
 
 
+@single_blas
 def order_hints(data: FrfData, *, count: int = 3, n_rows: int | None = None) -> OrderHints:
     """Candidate model orders from the singular values of the subspace step at every point.
 

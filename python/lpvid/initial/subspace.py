@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from lpvid._checks import complex_array, positive_int, real_array, sample_time
+from lpvid._threads import single_blas
 
 __all__ = [
     "bilinear_to_continuous",
@@ -238,6 +239,7 @@ def singular_values(
     return _projected(zd, g, s, q)[1]
 
 
+@single_blas
 def fd_subspace(
     freqs_hz: ArrayLike,
     G: ArrayLike,

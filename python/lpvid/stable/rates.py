@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from lpvid._threads import single_blas
 from lpvid.data.schedule import range_fraction
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
@@ -236,6 +237,7 @@ def _fmt(nu: NDArray) -> str:
     return f"{nu[0]:.4g}" if nu.size == 1 else "(" + ", ".join(f"{v:.4g}" for v in nu) + ")"
 
 
+@single_blas
 def rate_stability(
     model: LpvModel,
     rate: Any,
@@ -332,6 +334,7 @@ class RateBound:
     note: str
 
 
+@single_blas
 def max_rate(
     model: LpvModel,
     p_range: Any = None,

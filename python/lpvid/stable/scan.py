@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from lpvid._minimise import minimise_bounded
 from lpvid._problemlike import ProblemLike
+from lpvid._threads import single_blas
 from lpvid.model.frozen import frozen_poles, stability_margin
 from lpvid.model.lpv import LpvModel
 from lpvid.stable.lyapunov import LyapunovCertificate
@@ -310,6 +311,7 @@ def _refine_nd(
     return best_p, best_m, evals
 
 
+@single_blas
 def stability(
     model: LpvModel,
     p_range: Any = None,

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from lpvid._checks import positive_float
 from lpvid._problemlike import from_problem
+from lpvid._threads import single_blas
 from lpvid.data.frf import FrfData
 from lpvid.fit.cost import vnls
 from lpvid.fit.fits import fit_nls
@@ -61,6 +62,7 @@ def dropped_mask(model: LpvModel, threshold: float = 1e-6, p_range: Any = None) 
     return fixed_mask(model, {x: v for x, v in spec.items() if v})
 
 
+@single_blas
 def refit(
     model: LpvModel,
     data: FrfData,
