@@ -446,6 +446,15 @@ def test_a_process_pool_that_forks_is_refused_before_any_work(stage):
                 assert check_executor(pool) is pool
         finally:
             pool.shutdown()
+    # A pool whose context is not where CPython keeps it today is taken as one
+    # that does not fork, not refused with an AttributeError.
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+    context = pool.__dict__.pop("_mp_context")
+    try:
+        assert check_executor(pool) is pool
+    finally:
+        pool._mp_context = context
+        pool.shutdown()
 
 
 def test_a_dask_client_is_taken_as_its_executor():
@@ -463,6 +472,9 @@ def test_a_dask_client_is_taken_as_its_executor():
         broken = type("Client", (), {"__module__": "distributed", "get_executor": lambda s: 3})
         with pytest.raises(TypeError, match="got Client"):
             check_executor(broken())
+        # a distributed class named Client without get_executor: the same error
+        with pytest.raises(TypeError, match="or a distributed.Client, got Client"):
+            check_executor(type("Client", (), {"__module__": "distributed.client"})())
     finally:
         pool.shutdown()
 
