@@ -417,6 +417,11 @@ def test_warnings_of_pieces_reach_the_caller():
     with ThreadPoolExecutor(2) as pool, pytest.warns(lpvid.ConvergenceWarning) as caught:
         assert Spread(pool).map(piece, [(0,), (1,)]) == [0, 1]
     assert [str(w.message) for w in caught] == ["piece 0 warns", "piece 1 warns"]
+    # taken one by one, a piece's warning points at the line that took it
+    with ThreadPoolExecutor(1) as pool, pytest.warns(lpvid.ConvergenceWarning) as caught:
+        spread = Spread(pool)
+        assert spread.take(spread.submit(piece, 2)) == 2
+    assert [os.path.basename(w.filename) for w in caught] == [os.path.basename(__file__)]
 
 
 def test_executor_must_be_an_executor(stage):

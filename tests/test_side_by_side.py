@@ -58,6 +58,51 @@ def test_as_many_threads_as_the_memory_budget_holds(monkeypatch):
     assert set(alone) == {threading.current_thread().name}
 
 
+def test_the_cores_are_the_affinity_else_the_count(monkeypatch):
+    """Rejects a count other than the process's affinity, or a wrong one where it is unknown."""
+    monkeypatch.setattr(_spread.os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    assert _spread.cores() == 3
+    monkeypatch.setattr(_spread.os, "sched_getaffinity", lambda pid: set(), raising=False)
+    assert _spread.cores() == 1
+    monkeypatch.delattr(_spread.os, "sched_getaffinity", raising=False)
+    for count, expected in ((3, 3), (1, 1), (None, 1), (0, 1)):
+        monkeypatch.setattr(_spread.os, "cpu_count", lambda count=count: count)
+        assert _spread.cores() == expected
+
+
+def test_a_product_goes_by_blocks_from_thread_flops_a_block_over_one_block(rng, monkeypatch):
+    """Rejects another count of flops, a product of one block cut, or another memory per call.
+
+    By :func:`lpvid._spread.product`'s notes: blocks when the columns are
+    more than one block and a block's product (``2 rows inner block``
+    flops) is :data:`~lpvid._spread.THREAD_FLOPS` or more, each call
+    holding one block of the result.
+    """
+    calls = []
+
+    def recorded(fn, starts, *, flops, each):
+        calls.append((len(starts), flops, each))
+        for args in starts:
+            fn(*args)
+
+    monkeypatch.setattr(_spread, "side_by_side", recorded)
+    block = _spread.PRODUCT_BLOCK
+    rows, inner = 3, 4
+    a = rng.standard_normal((rows, inner))
+    flops = 2.0 * rows * inner * block
+    for cols, limit, by_blocks in (
+        (block + 1, flops, True),  # a block's flops at the limit
+        (block + 1, flops * 1.01, False),  # just below it
+        (block, 0.0, False),  # one block, whatever its work
+    ):
+        calls.clear()
+        monkeypatch.setattr(_spread, "THREAD_FLOPS", limit)
+        b = rng.standard_normal((inner, cols))
+        np.testing.assert_allclose(_spread.product(a, b), a @ b, rtol=1e-13)
+        expected = [(2, flops, 8 * rows * block)] if by_blocks else []
+        assert calls == expected, (cols, limit)
+
+
 def test_the_first_failure_in_order_is_raised():
     """Rejects the failure that came first in time (or none) raised instead."""
 
