@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import threading
 import warnings
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from typing import Any
@@ -19,7 +20,7 @@ import pytest
 
 import lpvid
 import lpvid.testing
-from lpvid._spread import Spread, check_executor
+from lpvid._spread import Spread, check_executor, stop_flag
 
 
 class LastFirst(Executor):
@@ -407,6 +408,30 @@ def test_the_first_failure_in_order_is_raised():
     with pytest.raises(ValueError, match="piece 1"):
         Spread(pool).map(piece, [(k,) for k in range(4)])
     assert len(pool.ran) == 4  # pieces 3 and 2 failed first
+
+
+def test_drop_stops_the_running_piece_and_cancels_every_one_not_started():
+    """Rejects a drop that ends at the first piece it cancels, or returns before a stopped one ends.
+
+    A piece left queued would run on after the KeyboardInterrupt that
+    dropped it (and the run's own pool would wait for it on the way out).
+    """
+    started = threading.Event()
+
+    def running() -> str:
+        started.set()
+        flag = stop_flag()
+        assert flag is not None and flag.wait(10)  # until the drop sets it
+        return "stopped"
+
+    with ThreadPoolExecutor(1) as pool:
+        spread = Spread(pool)
+        first = spread.submit(running)
+        queued = [spread.submit(int, k) for k in range(3)]
+        assert started.wait(10)
+        spread.drop()
+        assert first.future.done() and first.future.result()[0] == "stopped"
+        assert [p.future.cancelled() for p in queued] == [True, True, True]
 
 
 def test_warnings_of_pieces_reach_the_caller():
