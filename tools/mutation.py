@@ -18,6 +18,9 @@ directory (mutmut names mutants after the path and strips only ``src/``, so
 ``python/lpvid`` becomes ``src/lpvid`` there), the built ``_core`` included;
 ``--stage DIR`` keeps it, and ``--stage DIR --recheck`` runs only its
 survivors again against the current tests (after writing tests for them).
+A mutant mutmut calls a timeout is run again with its tests in a fresh
+process (mutmut's forked workers can hang starting a thread), and the
+tests' verdict stands.
 Rust mutants are built and tested by cargo-mutants in its own copy of the
 tree with the test profile (opt-level 1, the dependencies optimised, no
 debug information): the first build there compiles the dependencies (about
@@ -176,6 +179,57 @@ def merged(
     return out
 
 
+#: Seconds a mutant's tests may take when run again in a fresh process.
+FRESH_TIMEOUT_S = 600
+
+
+def fresh(
+    stage: Path, py: Path, tests: list[str], pytest_args: list[str], keys: list[str]
+) -> dict[str, str]:
+    """The status of each mutant with its tests run in a fresh process of its own.
+
+    mutmut runs the tests in workers forked from a process that has run
+    lpvid, and such a worker can hang for good starting a thread (a lock
+    held at the fork; seen on ``_spread.py``'s tests, which start thread
+    pools): mutmut then calls the mutant a timeout, which would count as
+    killed, whatever the tests say of it. Here the tests decide:
+    ``killed`` when they fail, ``survived`` when they pass, ``timeout``
+    only after :data:`FRESH_TIMEOUT_S`.
+    """
+    out = {}
+    env = dict(os.environ, PYTHONPATH=str(stage / "mutants" / "src"))
+    cmd = [str(py), "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests, *pytest_args]
+    for key in keys:
+        env["MUTANT_UNDER_TEST"] = key
+        try:
+            run = subprocess.run(
+                ["nice", "-n", "19", *cmd],
+                cwd=stage / "mutants",
+                env=env,
+                capture_output=True,
+                timeout=FRESH_TIMEOUT_S,
+            )
+            out[key] = "survived" if run.returncode == 0 else "killed"
+        except subprocess.TimeoutExpired:
+            out[key] = "timeout"
+        print(f"  {key}: {out[key]} (run again in a fresh process)", flush=True)
+    return out
+
+
+def with_statuses(
+    results: dict[str, dict[str, list[str]]], new: dict[str, str]
+) -> dict[str, dict[str, list[str]]]:
+    """``results`` with the statuses of ``new`` put in place of the mutants' old ones."""
+    out: dict[str, dict[str, list[str]]] = {}
+    for name, by in results.items():
+        status = {k: new.get(k, s) for s, keys in by.items() for k in keys}
+        regrouped: dict[str, list[str]] = {}
+        for k, s in sorted(status.items()):
+            regrouped.setdefault(s, []).append(k)
+        out[name] = regrouped
+    return out
+
+
 def _rate(by: dict[str, list[str]]) -> str:
     total = sum(len(v) for v in by.values())
     killed = len(by.get("killed", [])) + len(by.get("timeout", []))
@@ -205,11 +259,14 @@ def run_python(args: argparse.Namespace) -> int:
     cmd = ["nice", "-n", "19", str(mutmut), "run", "--max-children", str(args.jobs)]
     if args.recheck:
         print(f"re-checking the {len(again)} survivors with the current tests", flush=True)
-        if not again:
-            return 0
         cmd += again
-    code = subprocess.run(cmd, cwd=stage).returncode
+    code = subprocess.run(cmd, cwd=stage).returncode if again or not args.recheck else 0
     results = merged(before, py_results(stage)) if args.recheck else py_results(stage)
+    hung = [k for by in results.values() for k in by.get("timeout", [])]
+    if hung:
+        print(f"running the {len(hung)} timeouts again, each in a fresh process", flush=True)
+        extra = shlex.split(args.pytest_args)
+        results = with_statuses(results, fresh(stage, py, tests, extra, hung))
     (stage / STATUS_FILE).write_text(json.dumps(results, indent=1))
     print()
     for name, by in results.items():
