@@ -2,22 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from tools_loader import ROOT, load_tool
 
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _load_house_check():
-    spec = importlib.util.spec_from_file_location("house_check", ROOT / "tools" / "house_check.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-house = _load_house_check()
+house = load_tool("house_check")
 
 
 def _readme(rows: dict[str, str]) -> str:

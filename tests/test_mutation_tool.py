@@ -2,21 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tools_loader import load_tool
 
-
-def _load_mutation_tool():
-    spec = importlib.util.spec_from_file_location("mutation", ROOT / "tools" / "mutation.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-mutation = _load_mutation_tool()
+mutation = load_tool("mutation")
 
 #: A test that does what the mutant's name says (as mutmut's trampoline reads it).
 TEST = """
