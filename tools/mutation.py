@@ -189,10 +189,11 @@ def fresh(
     """The status of each mutant with its tests run in a fresh process of its own.
 
     mutmut runs the tests in workers forked from a process that has run
-    lpvid, and such a worker can hang for good starting a thread (a lock
-    held at the fork; seen on ``_spread.py``'s tests, which start thread
-    pools): mutmut then calls the mutant a timeout, which would count as
-    killed, whatever the tests say of it. Here the tests decide:
+    lpvid, and such a worker can hang for good starting a thread (seen on
+    ``_spread.py``'s tests, which start thread pools: the worker waits in
+    ``Thread.start`` for a thread that never signals it runs): mutmut then
+    calls the mutant a timeout, which would count as killed, whatever the
+    tests say of it. Here the tests decide:
     ``killed`` when they fail, ``survived`` when they pass, ``timeout``
     only after :data:`FRESH_TIMEOUT_S`.
     """
