@@ -30,6 +30,10 @@ def test_timeouts_are_judged_again_by_the_tests_in_a_fresh_process(tmp_path, mon
     keys = ["lpvid.m.x_f__mutmut_1_killed", "lpvid.m.x_f__mutmut_2_survived", "lpvid.m.x_hangs"]
     statuses = mutation.fresh(tmp_path, Path(sys.executable), ["tests/test_fake.py"], [], keys)
     assert statuses == dict(zip(keys, ["killed", "survived", "timeout"], strict=True))
+    # tests that collect nothing say nothing of the mutant (pytest's exit code 5)
+    (tests / "test_empty.py").write_text("")
+    empty = mutation.fresh(tmp_path, Path(sys.executable), ["tests/test_empty.py"], [], keys[:1])
+    assert empty == {keys[0]: "no tests"}
 
 
 def test_new_statuses_take_the_old_ones_place():

@@ -172,11 +172,16 @@ def merged(
             for k in keys:
                 if s != "not checked" or k not in status:
                     status[k] = s
-        by: dict[str, list[str]] = {}
-        for k, s in sorted(status.items()):
-            by.setdefault(s, []).append(k)
-        out[name] = by
+        out[name] = _grouped(status)
     return out
+
+
+def _grouped(status: dict[str, str]) -> dict[str, list[str]]:
+    """Mutant names by status, each list sorted, from every mutant's status."""
+    by: dict[str, list[str]] = {}
+    for k, s in sorted(status.items()):
+        by.setdefault(s, []).append(k)
+    return by
 
 
 #: Seconds a mutant's tests may take when run again in a fresh process.
@@ -194,8 +199,9 @@ def fresh(
     ``Thread.start`` for a thread that never signals it runs): mutmut then
     calls the mutant a timeout, which would count as killed, whatever the
     tests say of it. Here the tests decide:
-    ``killed`` when they fail, ``survived`` when they pass, ``timeout``
-    only after :data:`FRESH_TIMEOUT_S`.
+    ``killed`` when they fail, ``survived`` when they pass (``no tests``
+    when none ran, as mutmut reads pytest's exit codes), ``timeout`` only
+    after :data:`FRESH_TIMEOUT_S`.
     """
     out = {}
     env = dict(os.environ, PYTHONPATH=str(stage / "mutants" / "src"))
@@ -210,7 +216,7 @@ def fresh(
                 capture_output=True,
                 timeout=FRESH_TIMEOUT_S,
             )
-            out[key] = "survived" if run.returncode == 0 else "killed"
+            out[key] = STATUS.get(run.returncode, "suspicious")  # pytest's codes are mutmut's
         except subprocess.TimeoutExpired:
             out[key] = "timeout"
         print(f"  {key}: {out[key]} (run again in a fresh process)", flush=True)
@@ -221,14 +227,10 @@ def with_statuses(
     results: dict[str, dict[str, list[str]]], new: dict[str, str]
 ) -> dict[str, dict[str, list[str]]]:
     """``results`` with the statuses of ``new`` put in place of the mutants' old ones."""
-    out: dict[str, dict[str, list[str]]] = {}
-    for name, by in results.items():
-        status = {k: new.get(k, s) for s, keys in by.items() for k in keys}
-        regrouped: dict[str, list[str]] = {}
-        for k, s in sorted(status.items()):
-            regrouped.setdefault(s, []).append(k)
-        out[name] = regrouped
-    return out
+    return {
+        name: _grouped({k: new.get(k, s) for s, keys in by.items() for k in keys})
+        for name, by in results.items()
+    }
 
 
 def _rate(by: dict[str, list[str]]) -> str:
