@@ -25,28 +25,49 @@ order it finds itself and with five complex pole pairs (the truth's order),
 poles, its coefficients interpolated linearly between the points), timed
 and judged the same way.
 
-Run: python benches/bench_small.py [--repeat 5] [--seed 0] [--cores]
+With ``--settings``, ``identify`` runs with the leanest of the settings it
+offers in place of its defaults (:data:`SETTINGS`): the starts of the
+global route alone, a lean path (two values of gamma, at most three cone
+steps a reweighting and five reweightings), or both; what they save and
+what they cost against the truth (over ``--seed 0`` to ``7``) is in
+``docs/performance.md``.
+
+Run: python benches/bench_small.py [--repeat 5] [--seed 0] [--cores] [--settings lean]
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import statistics
 import sys
 import threading
 import time
 import types
 import warnings
+from typing import Any
 
 import numpy as np
 from bench_few import CASES, unseen
 
 import lpvid
 from lpvid._spread import cores
+from lpvid.fit.settings import PATH_L21
 from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
 
 FREQS_HZ = np.logspace(0.5, 3.5, 200) / (2 * np.pi)
+#: The leanest settings identify offers, by name (keyword arguments of identify).
+LEAN_PATH: dict[str, Any] = {
+    "gammas": (3e-2, 3e-3),
+    "settings": dataclasses.replace(PATH_L21, max_inner=3, max_outer=5),
+}
+SETTINGS: dict[str, dict[str, Any]] = {
+    "default": {},
+    "global-starts": {"routes": ("global",)},
+    "lean-path": LEAN_PATH,
+    "lean": {"routes": ("global",), **LEAN_PATH},
+}
 #: The truth's order for scikit-rf: five complex pole pairs, no real pole.
 FIVE_PAIRS = {"n_poles_real": 0, "n_poles_cmplx": 5}
 
@@ -104,7 +125,11 @@ def stage_cores(trace: CpuTrace, called: float, timings: dict[str, float]) -> di
 
 
 def time_lpvid(
-    true: lpvid.LpvModel, data: lpvid.FrfData, repeat: int, with_cores: bool = False
+    true: lpvid.LpvModel,
+    data: lpvid.FrfData,
+    repeat: int,
+    with_cores: bool = False,
+    settings: str = "default",
 ) -> None:
     """Median seconds of identify and of each of its stages, and the error between the points."""
     runs, busy = [], []
@@ -114,7 +139,7 @@ def time_lpvid(
             trace = CpuTrace() if with_cores else None
             with trace or contextlib.nullcontext():
                 t, c = time.perf_counter(), time.process_time()
-                res = lpvid.identify(data, 10, true.basis, fixed={"D": True})
+                res = lpvid.identify(data, 10, true.basis, fixed={"D": True}, **SETTINGS[settings])
                 seconds, cpu = time.perf_counter() - t, time.process_time() - c
         if k:
             runs.append((seconds, res.timings, cpu))
@@ -122,10 +147,11 @@ def time_lpvid(
                 busy.append(stage_cores(trace, t, res.timings))
     at = unseen(CASES["mor"], *map(np.atleast_1d, true.p_range))
     err = worst_relative_error(res.model, true, FREQS_HZ, at)
+    median = statistics.median(s for s, _, _ in runs)
     print(
-        f"lpvid.identify: median {statistics.median(s for s, _, _ in runs):.3f} s over {repeat} "
-        f"runs; start {res.start}, {res.model.group_norms().count()} groups; worst relative "
-        f"error at 20 unseen values {err:.3g}"
+        f"lpvid.identify ({settings} settings): median {median:.3f} s over {repeat} runs; "
+        f"start {res.start}, {res.model.group_norms().count()} groups; worst relative error "
+        f"at 20 unseen values {err:.3g}"
     )
     for stage in runs[0][1]:
         values = [t[stage] for _, t, _ in runs if stage in t]
@@ -206,9 +232,12 @@ def main() -> None:
     parser.add_argument(
         "--cores", action="store_true", help="also the cores each stage keeps busy on average"
     )
+    parser.add_argument(
+        "--settings", choices=sorted(SETTINGS), default="default", help="identify's settings"
+    )
     args = parser.parse_args()
     true, data = measured(args.seed)
-    time_lpvid(true, data, args.repeat, args.cores)
+    time_lpvid(true, data, args.repeat, args.cores, args.settings)
     time_skrf(true, data, args.repeat)
 
 
