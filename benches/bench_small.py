@@ -57,16 +57,18 @@ from lpvid.fit.settings import PATH_L21
 from lpvid.testing import noisy_data, synthetic_parametric, worst_relative_error
 
 FREQS_HZ = np.logspace(0.5, 3.5, 200) / (2 * np.pi)
-#: The leanest settings identify offers, by name (keyword arguments of identify).
+#: The leanest settings identify offers, by name (keyword arguments of identify):
+#: the global route's starts alone, a lean path, or both.
+GLOBAL_STARTS: dict[str, Any] = {"routes": ("global",)}
 LEAN_PATH: dict[str, Any] = {
     "gammas": (3e-2, 3e-3),
     "settings": dataclasses.replace(PATH_L21, max_inner=3, max_outer=5),
 }
 SETTINGS: dict[str, dict[str, Any]] = {
     "default": {},
-    "global-starts": {"routes": ("global",)},
+    "global-starts": GLOBAL_STARTS,
     "lean-path": LEAN_PATH,
-    "lean": {"routes": ("global",), **LEAN_PATH},
+    "lean": {**GLOBAL_STARTS, **LEAN_PATH},
 }
 #: The truth's order for scikit-rf: five complex pole pairs, no real pole.
 FIVE_PAIRS = {"n_poles_real": 0, "n_poles_cmplx": 5}
